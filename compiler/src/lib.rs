@@ -7,3 +7,4 @@
 //! input text (every problem with a source file is a [`diag::Diagnostic`]).
 
 pub mod ir;
+pub mod interp;

@@ -1,0 +1,12 @@
+//! `psc bench`.
+
+use std::process::ExitCode;
+
+use crate::Failure;
+
+#[derive(clap::Args)]
+pub struct Args {}
+
+pub fn run(_args: Args) -> Result<ExitCode, Failure> {
+    Err(Failure("`psc bench` is not built yet".into()))
+}
