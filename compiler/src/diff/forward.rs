@@ -1,0 +1,1 @@
+//! Forward-mode differentiation (owned by the diff work; placeholder).

@@ -1,0 +1,1 @@
+//! Reverse-mode adjoint programs (owned by the diff work; placeholder).

@@ -1,0 +1,1 @@
+//! Parallel kernels over compiled graphs (placeholder).
