@@ -1,0 +1,386 @@
+//! Symbolic differentiation against finite differences (random programs), forward against
+//! reverse mode, the rules at kinks, golden adjoint dumps and the "no work for unused
+//! parameters" invariant.
+
+use proptest::prelude::*;
+use proptest::strategy::ValueTree;
+use proptest::test_runner::TestRunner;
+use psc_compiler::diff::{adjoint, derivative, derivative_program, ForwardDiff, Wrt};
+use psc_compiler::interp::eval_point;
+use psc_compiler::ir::{semantics, Builder, NodeId, Op, Output, Program};
+
+const NUM_PARAMS: u32 = 3;
+const ALL_WRT: [Wrt; 5] = [Wrt::U, Wrt::V, Wrt::Param(0), Wrt::Param(1), Wrt::Param(2)];
+
+// ---------------------------------------------------------------------------------------------
+// Random programs
+
+/// Every non-leaf op kind, in the order the generator's `kind` indexes them (0 is a constant).
+const OP_KINDS: [&str; 21] = [
+    "neg", "abs", "floor", "sqrt", "sin", "cos", "exp", "log", "add", "sub", "mul", "div", "min",
+    "max", "pow", "atan2", "hash", "lt", "le", "eq", "select",
+];
+
+/// One generated node: an op kind, three operand picks and a constant (for kind 0).
+#[derive(Clone, Debug)]
+struct NodeSpec {
+    kind: usize,
+    picks: [u16; 3],
+    constant: f32,
+}
+
+fn node_spec() -> impl Strategy<Value = NodeSpec> {
+    (0..=OP_KINDS.len(), any::<[u16; 3]>(), -3.0f32..3.0).prop_map(|(kind, picks, constant)| NodeSpec {
+        kind,
+        picks,
+        constant,
+    })
+}
+
+/// Random DAGs over u, v, three params and constants, built through `Builder` (so folded and
+/// hash-consed like real lowered graphs), with one to three outputs.
+fn program() -> impl Strategy<Value = Program> {
+    (prop::collection::vec(node_spec(), 3..28), prop::collection::vec(any::<u16>(), 0..3))
+        .prop_map(|(specs, extra_outputs)| build_program(&specs, &extra_outputs))
+}
+
+fn build_program(specs: &[NodeSpec], extra_outputs: &[u16]) -> Program {
+    let mut b = Builder::new();
+    let mut pool = vec![b.u(), b.v()];
+    pool.extend((0..NUM_PARAMS).map(|p| b.param(p)));
+    for spec in specs {
+        // A third of the picks come from the last few nodes, so programs grow deep, not only
+        // wide; a third are inputs, so that most nodes depend on several variables.
+        let pick = |k: usize| {
+            let (raw, n) = (spec.picks[k] as usize, pool.len());
+            match raw % 3 {
+                0 => pool[n - 1 - (raw / 3) % n.min(4)],
+                1 => pool[(raw / 3) % n],
+                _ => pool[(raw / 3) % (2 + NUM_PARAMS as usize)],
+            }
+        };
+        let (a, c, d) = (pick(0), pick(1), pick(2));
+        let node = match spec.kind {
+            0 => b.constant(spec.constant),
+            k => {
+                let op = match OP_KINDS[k - 1] {
+                    "neg" => Op::Neg(a),
+                    "abs" => Op::Abs(a),
+                    "floor" => Op::Floor(a),
+                    "sqrt" => Op::Sqrt(a),
+                    "sin" => Op::Sin(a),
+                    "cos" => Op::Cos(a),
+                    "exp" => Op::Exp(a),
+                    "log" => Op::Log(a),
+                    "add" => Op::Add(a, c),
+                    "sub" => Op::Sub(a, c),
+                    "mul" => Op::Mul(a, c),
+                    "div" => Op::Div(a, c),
+                    "min" => Op::Min(a, c),
+                    "max" => Op::Max(a, c),
+                    "pow" => Op::Pow(a, c),
+                    "atan2" => Op::Atan2(a, c),
+                    "hash" => Op::Hash(a, c),
+                    "lt" => Op::Lt(a, c),
+                    "le" => Op::Le(a, c),
+                    "eq" => Op::Eq(a, c),
+                    "select" => Op::Select(a, c, d),
+                    other => unreachable!("{other}"),
+                };
+                b.push(op)
+            }
+        };
+        pool.push(node);
+    }
+    // The main output sums the last three nodes, so that it rarely ends in a piecewise-constant
+    // op and usually depends on several inputs.
+    let n = pool.len();
+    let tail = b.add(pool[n - 1], pool[n - 2]);
+    let mut outputs = vec![b.add(tail, pool[n - 3])];
+    outputs.extend(extra_outputs.iter().map(|&k| pool[k as usize % pool.len()]));
+    let outputs = outputs.into_iter().enumerate().map(|(k, node)| Output { name: format!("o{k}"), node }).collect();
+    let mut program = b.finish(outputs);
+    program.eliminate_dead_code();
+    program
+}
+
+// ---------------------------------------------------------------------------------------------
+// Evaluation helpers
+
+#[derive(Clone, Copy, Debug)]
+struct Point {
+    u: f32,
+    v: f32,
+    params: [f32; NUM_PARAMS as usize],
+}
+
+impl Point {
+    fn get(&self, wrt: Wrt) -> f32 {
+        match wrt {
+            Wrt::U => self.u,
+            Wrt::V => self.v,
+            Wrt::Param(p) => self.params[p as usize],
+        }
+    }
+    fn with(mut self, wrt: Wrt, x: f32) -> Point {
+        match wrt {
+            Wrt::U => self.u = x,
+            Wrt::V => self.v = x,
+            Wrt::Param(p) => self.params[p as usize] = x,
+        }
+        self
+    }
+    fn eval(&self, program: &Program, seeds: &[f32]) -> Vec<f32> {
+        eval_point(program, &self.params, self.u, self.v, seeds)
+    }
+}
+
+/// Every node's value (forward programs only), straight from `semantics`, for the branch checks.
+fn node_values(program: &Program, at: &Point) -> Vec<f32> {
+    let mut values: Vec<f32> = Vec::with_capacity(program.nodes.len());
+    for op in &program.nodes {
+        let x = match *op {
+            Op::Const(bits) => f32::from_bits(bits),
+            Op::U => at.u,
+            Op::V => at.v,
+            Op::Param(p) => at.params[p as usize],
+            Op::Seed(_) => unreachable!("forward programs read no seeds"),
+            _ => {
+                let mut arg = op.operands().map(|id| values[id.index()]);
+                let (a, b, c) = (arg.next().unwrap_or(0.0), arg.next().unwrap_or(0.0), arg.next().unwrap_or(0.0));
+                semantics::eval(op, a, b, c).unwrap()
+            }
+        };
+        values.push(x);
+    }
+    values
+}
+
+/// Which side of each discontinuity (of the value or of the derivative) every node is on. Two
+/// points with equal signatures are in the same smooth piece of every op, so a finite difference
+/// between them measures the derivative the rules define.
+fn branch_signature(program: &Program, values: &[f32]) -> Vec<i64> {
+    let val = |id: NodeId| values[id.index()];
+    let key = |x: bool| x as i64;
+    program
+        .nodes
+        .iter()
+        .enumerate()
+        .map(|(i, op)| match *op {
+            Op::Floor(a) => val(a).floor() as i64,
+            Op::Hash(a, b) => ((semantics::to_int(val(a)) as i64) << 32) ^ semantics::to_int(val(b)) as i64,
+            // Comparisons are discontinuous in their own result.
+            Op::Lt(..) | Op::Le(..) | Op::Eq(..) => values[i] as i64,
+            Op::Select(c, ..) => key(val(c) != 0.0),
+            Op::Min(a, b) => key(val(a) < val(b)),
+            Op::Max(a, b) => key(val(a) > val(b)),
+            Op::Abs(a) => key(val(a) < 0.0),
+            Op::Sqrt(a) | Op::Log(a) => key(val(a) > f32::MIN_POSITIVE),
+            Op::Pow(a, _) => key(val(a) > 0.0),
+            Op::Div(_, b) => key(val(b) > 0.0),
+            // The branch cut of atan2 lies on the negative x axis.
+            Op::Atan2(y, x) => key(val(y) >= 0.0) * 2 + key(val(x) >= 0.0),
+            _ => 0,
+        })
+        .collect()
+}
+
+/// Values of every node stay moderate and finite at `at`, so f32 finite differences are
+/// meaningful; returns the largest magnitude.
+fn max_magnitude(values: &[f32]) -> Option<f32> {
+    values.iter().try_fold(0.0f32, |m, &x| if x.is_finite() && x.abs() < 1e5 { Some(m.max(x.abs())) } else { None })
+}
+
+// ---------------------------------------------------------------------------------------------
+// Finite differences
+
+/// Outcome of comparing one derivative with finite differences.
+#[derive(Debug, PartialEq)]
+enum Probe {
+    /// Agreed; `true` when the derivative is clearly non-zero.
+    Agreed(bool),
+    /// The probe interval crosses a kink, or the function is not resolvable at this step.
+    Skipped,
+}
+
+/// Central difference of output `k` of `program` along `wrt` at `at`, compared with `exact`.
+///
+/// The step is h = 1e-3 · max(1, |x|), evaluated in f32 by the interpreter. Samples are skipped
+/// (not compared) when any node changes branch anywhere on the five probe points x-h…x+h, when a
+/// value is non-finite or above 1e5, or when the estimates at h and h/2 differ by more than
+/// 5 % (1 + |D|): a derivative the step cannot resolve. Otherwise the tolerance is
+///   1e-3 · (1 + |exact|)            (mixed absolute/relative floor)
+/// + 2 · |D(h) - D(h/2)|             (estimated truncation + rounding error of the probe)
+/// + 16 · eps · max|node| / h        (f32 rounding of the evaluated values, amplified by 1/h).
+fn check_against_finite_differences(program: &Program, k: usize, wrt: Wrt, at: Point, exact: f32) -> Result<Probe, String> {
+    let x = at.get(wrt);
+    let h = 1e-3 * x.abs().max(1.0);
+    let offsets = [-h, -h / 2.0, 0.0, h / 2.0, h];
+    let points: Vec<Point> = offsets.iter().map(|&dx| at.with(wrt, x + dx)).collect();
+    let mut largest = 0.0f32;
+    let mut signatures = Vec::new();
+    for p in &points {
+        let values = node_values(program, p);
+        match max_magnitude(&values) {
+            Some(m) => largest = largest.max(m),
+            None => return Ok(Probe::Skipped),
+        }
+        signatures.push(branch_signature(program, &values));
+    }
+    if signatures.windows(2).any(|w| w[0] != w[1]) || !exact.is_finite() {
+        return Ok(Probe::Skipped);
+    }
+    let f: Vec<f32> = points.iter().map(|p| p.eval(program, &[])[k]).collect();
+    // Divide by the steps actually taken (x ± h rounds in f32).
+    let xs: Vec<f32> = points.iter().map(|p| p.get(wrt)).collect();
+    let central_h = (f[4] - f[0]) / (xs[4] - xs[0]);
+    let central_half = (f[3] - f[1]) / (xs[3] - xs[1]);
+    let disagreement = (central_h - central_half).abs();
+    if disagreement > 0.05 * (1.0 + central_h.abs()) {
+        return Ok(Probe::Skipped);
+    }
+    let tolerance = 1e-3 * (1.0 + exact.abs()) + 2.0 * disagreement + 16.0 * f32::EPSILON * largest / h;
+    if (exact - central_h).abs() <= tolerance {
+        Ok(Probe::Agreed(exact != 0.0))
+    } else {
+        Err(format!(
+            "d(o{k})/d{wrt} at {at:?}: symbolic {exact}, central differences {central_h} (h/2: {central_half}), \
+             tolerance {tolerance}\n{program}"
+        ))
+    }
+}
+
+#[derive(Debug, Default)]
+struct Coverage {
+    agreed: usize,
+    agreed_non_zero: usize,
+    skipped: usize,
+}
+
+/// Forward mode against finite differences, then reverse mode against forward mode, for every
+/// output and every variable, at each point.
+fn check_program(program: &Program, points: &[(Point, [f32; 3])]) -> Result<Coverage, String> {
+    program.validate()?;
+    let forward_derivatives: Vec<Program> = ALL_WRT.iter().map(|&w| derivative_program(program, w)).collect();
+    let fused = adjoint(program, &[0, 1, 2]);
+    fused.validate()?;
+    let outputs = program.outputs.len();
+    let mut coverage = Coverage::default();
+    for (at, seeds) in points {
+        let seeds = &seeds[..outputs];
+        let values = at.eval(program, &[]);
+        let gradients: Vec<Vec<f32>> = forward_derivatives.iter().map(|d| at.eval(d, &[])).collect();
+        for (w, &wrt) in ALL_WRT.iter().enumerate() {
+            for k in 0..outputs {
+                match check_against_finite_differences(program, k, wrt, *at, gradients[w][k])? {
+                    Probe::Agreed(non_zero) => {
+                        coverage.agreed += 1;
+                        coverage.agreed_non_zero += non_zero as usize;
+                    }
+                    Probe::Skipped => coverage.skipped += 1,
+                }
+            }
+        }
+        // Reverse mode: the fused outputs are the forward values, then the seed-weighted sums of
+        // the forward-mode derivatives. Both sides are exact, so only f32 summation order
+        // differs: tolerance 1e-4 relative to the sum of the magnitudes of the terms.
+        let reverse = at.eval(&fused, seeds);
+        let same_values = values.iter().zip(&reverse).all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
+        if !same_values {
+            return Err(format!("fused forward values {:?} differ from {values:?}", &reverse[..outputs]));
+        }
+        for (w, &wrt) in ALL_WRT.iter().enumerate() {
+            let terms: Vec<f32> = seeds.iter().zip(&gradients[w]).map(|(s, g)| s * g).collect();
+            if terms.iter().any(|t| !t.is_finite()) {
+                continue;
+            }
+            let expected: f32 = terms.iter().sum();
+            let scale: f32 = terms.iter().map(|t| t.abs()).sum();
+            let got = reverse[outputs + w];
+            if (got - expected).abs() > 1e-4 * (1.0 + scale) {
+                return Err(format!("reverse d/d{wrt} = {got}, forward gives {expected} at {at:?}, seeds {seeds:?}\n{program}"));
+            }
+        }
+    }
+    Ok(coverage)
+}
+
+fn point() -> impl Strategy<Value = (Point, [f32; 3])> {
+    (0.0f32..1.0, 0.0f32..1.0, [-2.0f32..2.0, -2.0f32..2.0, -2.0f32..2.0], [-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0])
+        .prop_map(|(u, v, params, seeds)| (Point { u, v, params }, seeds))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, failure_persistence: None, ..ProptestConfig::default() })]
+
+    #[test]
+    fn derivatives_match_finite_differences_and_reverse_matches_forward(
+        program in program(),
+        points in prop::collection::vec(point(), 4),
+    ) {
+        check_program(&program, &points).map_err(TestCaseError::fail)?;
+    }
+
+    /// Second derivatives: differentiating a derivative program is checked the same way.
+    #[test]
+    fn second_derivatives_match_finite_differences(
+        program in program(),
+        points in prop::collection::vec(point(), 2),
+    ) {
+        for wrt in [Wrt::U, Wrt::V] {
+            let first = derivative_program(&program, wrt);
+            check_program(&first, &points).map_err(TestCaseError::fail)?;
+        }
+    }
+
+    /// Mixed partials are symmetric: d/du d/dv f = d/dv d/du f (both symbolic, so tight).
+    #[test]
+    fn mixed_second_derivatives_commute(program in program(), (at, _) in point()) {
+        let mut b = Builder::from_program(&program);
+        let (mut ddu, mut ddv) = (ForwardDiff::new(Wrt::U), ForwardDiff::new(Wrt::V));
+        let mut outputs = Vec::new();
+        for o in &program.outputs {
+            let (du, dv) = (ddu.derivative(&mut b, o.node), ddv.derivative(&mut b, o.node));
+            let (dvdu, dudv) = (ddv.derivative(&mut b, du), ddu.derivative(&mut b, dv));
+            outputs.push(Output { name: "dvdu".into(), node: dvdu });
+            outputs.push(Output { name: "dudv".into(), node: dudv });
+        }
+        let mixed = b.finish(outputs);
+        mixed.validate().map_err(TestCaseError::fail)?;
+        let values = at.eval(&mixed, &[]);
+        for pair in values.chunks(2) {
+            let (a, c) = (pair[0], pair[1]);
+            if a.is_finite() && c.is_finite() {
+                prop_assert!((a - c).abs() <= 1e-3 * (1.0 + a.abs().max(c.abs())), "{a} vs {c}\n{mixed}");
+            }
+        }
+    }
+}
+
+/// The property tests above skip samples near kinks; this makes sure they still compare a
+/// healthy share of derivatives and that the compared programs use every op kind.
+#[test]
+fn random_programs_are_mostly_comparable_and_use_every_op() {
+    let mut runner = TestRunner::deterministic();
+    let cases = (program(), prop::collection::vec(point(), 4));
+    let (mut agreed, mut agreed_non_zero, mut skipped) = (0, 0, 0);
+    let mut kinds_seen = std::collections::BTreeSet::new();
+    for _ in 0..200 {
+        let (program, points) = cases.new_tree(&mut runner).unwrap().current();
+        let coverage = check_program(&program, &points).unwrap();
+        agreed += coverage.agreed;
+        agreed_non_zero += coverage.agreed_non_zero;
+        skipped += coverage.skipped;
+        if coverage.agreed > 0 {
+            kinds_seen.extend(program.nodes.iter().filter(|op| !op.is_leaf()).map(|op| op.mnemonic()));
+        }
+    }
+    let share = agreed as f64 / (agreed + skipped) as f64;
+    eprintln!("compared {agreed} ({agreed_non_zero} non-zero), skipped {skipped}");
+    assert!(share > 0.5, "only {agreed} of {} derivatives were comparable", agreed + skipped);
+    assert!(agreed_non_zero > 1000, "only {agreed_non_zero} of {agreed} compared derivatives are non-zero");
+    for kind in OP_KINDS {
+        assert!(kinds_seen.contains(kind), "no compared program used `{kind}`");
+    }
+}
+
