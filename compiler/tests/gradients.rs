@@ -384,3 +384,232 @@ fn random_programs_are_mostly_comparable_and_use_every_op() {
     }
 }
 
+
+/// The cheap-gradient principle: the fused program costs a bounded multiple of the forward one
+/// (the worst single rule, atan2, adds about ten ops), never an expression swell.
+#[test]
+fn adjoint_cost_is_a_bounded_multiple_of_the_forward_cost() {
+    let mut runner = TestRunner::deterministic();
+    let (mut forward_total, mut adjoint_total, mut forward_mode_total) = (0, 0, 0);
+    for _ in 0..200 {
+        let program = program().new_tree(&mut runner).unwrap().current();
+        let fused = adjoint(&program, &[0, 1, 2]);
+        let (forward_ops, fused_ops) = (program.op_count(), fused.op_count());
+        assert!(fused_ops <= 12 * forward_ops + 4, "{forward_ops} forward ops became {fused_ops}\n{program}\n{fused}");
+        forward_total += forward_ops;
+        adjoint_total += fused_ops;
+        forward_mode_total += ALL_WRT.iter().map(|&w| derivative_program(&program, w).op_count()).sum::<usize>();
+    }
+    eprintln!(
+        "200 random programs: {forward_total} forward ops, {adjoint_total} in the fused adjoints, \
+         {forward_mode_total} in five forward-mode derivative programs (each including the forward ops)"
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Rules at kinks, by hand
+
+/// A one-output program `f(u, v, p0)`.
+fn single(f: impl FnOnce(&mut Builder, NodeId, NodeId, NodeId) -> NodeId) -> Program {
+    let mut b = Builder::new();
+    let (u, v, p0) = (b.u(), b.v(), b.param(0));
+    let node = f(&mut b, u, v, p0);
+    b.finish(vec![Output { name: "f".into(), node }])
+}
+
+/// `[df/du, df/dv, df/dp0]` by forward mode, after checking that reverse mode agrees.
+fn gradient(program: &Program, u: f32, v: f32, p0: f32) -> [f32; 3] {
+    let forward = [Wrt::U, Wrt::V, Wrt::Param(0)].map(|w| eval_point(&derivative_program(program, w), &[p0], u, v, &[])[0]);
+    let fused = adjoint(program, &[0]);
+    fused.validate().unwrap();
+    let reverse = eval_point(&fused, &[p0], u, v, &[1.0]);
+    for (f, r) in forward.iter().zip(&reverse[1..]) {
+        assert!((f - r).abs() <= 1e-6 * (1.0 + f.abs()), "forward {forward:?}, reverse {:?}", &reverse[1..]);
+    }
+    forward
+}
+
+fn assert_gradient(program: &Program, (u, v, p0): (f32, f32, f32), expected: [f32; 3]) {
+    let got = gradient(program, u, v, p0);
+    for (g, e) in got.iter().zip(expected) {
+        assert!((g - e).abs() <= 1e-5 * (1.0 + e.abs()), "at {:?}: got {got:?}, expected {expected:?}\n{program}", (u, v, p0));
+    }
+}
+
+#[test]
+fn min_and_max_route_to_the_active_branch() {
+    let min = single(|b, u, v, _| b.min(u, v));
+    assert_gradient(&min, (0.2, 0.7, 0.0), [1.0, 0.0, 0.0]);
+    assert_gradient(&min, (0.7, 0.2, 0.0), [0.0, 1.0, 0.0]);
+    let max = single(|b, u, v, _| b.max(u, v));
+    assert_gradient(&max, (0.2, 0.7, 0.0), [0.0, 1.0, 0.0]);
+    assert_gradient(&max, (0.7, 0.2, 0.0), [1.0, 0.0, 0.0]);
+    let select = single(|b, u, v, _| {
+        let (c, s, vv) = (b.lt(u, v), b.sin(u), b.mul(v, v));
+        b.select(c, s, vv)
+    });
+    assert_gradient(&select, (0.2, 0.7, 0.0), [0.2f32.cos(), 0.0, 0.0]);
+    assert_gradient(&select, (0.7, 0.2, 0.0), [0.0, 0.4, 0.0]);
+}
+
+#[test]
+fn piecewise_constant_ops_have_zero_derivative_and_emit_nothing() {
+    let programs = [
+        single(|b, u, _, _| b.scale(4.0, u)), // control: not piecewise constant
+        single(|b, u, _, _| {
+            let x = b.scale(4.0, u);
+            b.floor(x)
+        }),
+        single(|b, u, v, _| {
+            let (x, y) = (b.scale(10.0, u), b.scale(10.0, v));
+            b.hash(x, y)
+        }),
+        single(|b, u, v, _| b.lt(u, v)),
+        single(|b, u, v, _| b.le(u, v)),
+        single(|b, u, v, _| b.eq(u, v)),
+    ];
+    assert_gradient(&programs[0], (0.3, 0.6, 0.0), [4.0, 0.0, 0.0]);
+    for program in &programs[1..] {
+        assert_gradient(program, (0.3, 0.6, 0.0), [0.0; 3]);
+        for wrt in [Wrt::U, Wrt::V] {
+            let d = derivative_program(program, wrt);
+            assert_eq!(d.op_count(), 0, "derivative of a piecewise-constant op emitted code:\n{d}");
+        }
+    }
+    let fract = single(|b, u, _, _| {
+        let x = b.scale(3.0, u);
+        b.fract(x)
+    });
+    assert_gradient(&fract, (0.5, 0.0, 0.0), [3.0, 0.0, 0.0]);
+    assert_gradient(&fract, (0.9, 0.0, 0.0), [3.0, 0.0, 0.0]);
+}
+
+#[test]
+fn sqrt_and_log_are_guarded_at_the_edge_of_their_domain() {
+    let sqrt = single(|b, u, _, _| b.sqrt(u));
+    assert_gradient(&sqrt, (0.0, 0.0, 0.0), [0.0; 3]); // 0, not inf or NaN
+    assert_gradient(&sqrt, (0.25, 0.0, 0.0), [1.0, 0.0, 0.0]);
+    let sqrt_shifted = single(|b, u, _, _| {
+        let half = b.constant(0.5);
+        let x = b.sub(u, half);
+        b.sqrt(x)
+    });
+    assert_gradient(&sqrt_shifted, (0.2, 0.0, 0.0), [0.0; 3]);
+    let log = single(|b, u, _, _| b.log(u));
+    assert_gradient(&log, (0.0, 0.0, 0.0), [0.0; 3]);
+    assert_gradient(&log, (0.5, 0.0, 0.0), [2.0, 0.0, 0.0]);
+}
+
+#[test]
+fn pow_has_zero_derivative_where_the_base_is_not_positive() {
+    let pow = single(|b, u, _, p0| {
+        let half = b.constant(0.5);
+        let base = b.sub(u, half);
+        b.pow(base, p0)
+    });
+    assert_gradient(&pow, (0.2, 0.0, 2.0), [0.0; 3]); // base < 0
+    assert_gradient(&pow, (0.5, 0.0, 2.0), [0.0; 3]); // base = 0
+    assert_gradient(&pow, (0.5, 0.0, 0.5), [0.0; 3]); // base = 0, exponent < 1: no inf
+    assert_gradient(&pow, (1.5, 0.0, 2.0), [2.0, 0.0, 0.0]); // 2·1, 1·ln 1
+    assert_gradient(&pow, (2.5, 0.0, 3.0), [12.0, 0.0, 8.0 * 2f32.ln()]);
+}
+
+#[test]
+fn abs_atan2_and_div_follow_their_stated_rules() {
+    let abs = single(|b, u, _, _| {
+        let half = b.constant(0.5);
+        let x = b.sub(u, half);
+        b.abs(x)
+    });
+    assert_gradient(&abs, (0.2, 0.0, 0.0), [-1.0, 0.0, 0.0]);
+    assert_gradient(&abs, (0.7, 0.0, 0.0), [1.0, 0.0, 0.0]);
+    assert_gradient(&abs, (0.5, 0.0, 0.0), [1.0, 0.0, 0.0]); // the kink takes the `a >= 0` side
+    let atan2 = single(|b, u, v, _| {
+        let half = b.constant(0.5);
+        let (x, y) = (b.sub(u, half), b.sub(v, half));
+        b.atan2(y, x)
+    });
+    assert_gradient(&atan2, (0.5, 0.5, 0.0), [0.0; 3]); // origin: 0, not NaN
+    assert_gradient(&atan2, (1.5, 0.5, 0.0), [0.0, 1.0, 0.0]);
+    assert_gradient(&atan2, (0.5, 2.5, 0.0), [-0.5, 0.0, 0.0]);
+    let div = single(|b, u, v, _| b.div(u, v));
+    assert_gradient(&div, (0.3, 0.5, 0.0), [2.0, -1.2, 0.0]);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Adjoint invariants and golden dumps
+
+#[test]
+fn parameters_the_outputs_do_not_depend_on_get_no_adjoint_code() {
+    // p1 is read only through floor and hash (zero derivative); p2 is not read at all.
+    let mut b = Builder::new();
+    let (u, v, p0, p1) = (b.u(), b.v(), b.param(0), b.param(1));
+    b.reserve_params(3);
+    let up = b.mul(u, p0);
+    let wave = b.sin(up);
+    let step = b.floor(p1);
+    let stepped = b.mul(step, v);
+    let noise = b.hash(p1, u);
+    let sum = b.add(wave, stepped);
+    let f = b.add(sum, noise);
+    let program = b.finish(vec![Output { name: "f".into(), node: f }]);
+
+    let only_p0 = adjoint(&program, &[0]);
+    let all = adjoint(&program, &[0, 1, 2]);
+    for fused in [&only_p0, &all] {
+        fused.validate().unwrap();
+    }
+    for name in ["d_param1", "d_param2"] {
+        let node = all.output(name).unwrap();
+        assert_eq!(all.op(node).as_const(), Some(0.0), "{name} should be the constant 0:\n{all}");
+    }
+    assert_eq!(all.op_count(), only_p0.op_count(), "asking for p1, p2 added work:\n{all}");
+    assert_eq!(derivative_program(&program, Wrt::Param(1)).op_count(), 0);
+}
+
+#[test]
+fn adjoint_of_sin_u_times_p0() {
+    let program = single(|b, u, _, p0| {
+        let x = b.mul(u, p0);
+        b.sin(x)
+    });
+    insta::assert_snapshot!(adjoint(&program, &[0]).to_string());
+}
+
+#[test]
+fn adjoint_of_min_u_v_times_sqrt_p0() {
+    let program = single(|b, u, v, p0| {
+        let (m, s) = (b.min(u, v), b.sqrt(p0));
+        b.mul(m, s)
+    });
+    insta::assert_snapshot!(adjoint(&program, &[0]).to_string());
+}
+
+#[test]
+fn adjoint_of_two_outputs_sharing_a_subexpression() {
+    let mut b = Builder::new();
+    let (u, p0, p1) = (b.u(), b.param(0), b.param(1));
+    let up = b.mul(u, p0);
+    let e = b.exp(up);
+    let scaled = b.mul(e, p1);
+    let program = b.finish(vec![Output { name: "a".into(), node: up }, Output { name: "b".into(), node: scaled }]);
+    insta::assert_snapshot!(adjoint(&program, &[0, 1]).to_string());
+}
+
+#[test]
+fn forward_derivatives_of_a_height_for_its_normal() {
+    // The lowering's normal from height: d/du and d/dv of one height node, sharing work.
+    let mut b = Builder::new();
+    let (u, v, p0) = (b.u(), b.v(), b.param(0));
+    let up = b.mul(u, p0);
+    let (s, c) = (b.sin(up), b.cos(v));
+    let height = b.mul(s, c);
+    let du = derivative(&mut b, height, Wrt::U);
+    let dv = derivative(&mut b, height, Wrt::V);
+    let program = b.finish(vec![
+        Output { name: "h".into(), node: height },
+        Output { name: "dh_du".into(), node: du },
+        Output { name: "dh_dv".into(), node: dv },
+    ]);
+    insta::assert_snapshot!(program.to_string());
+}
