@@ -127,10 +127,10 @@ pub(crate) fn local_rule(b: &mut Builder, node: NodeId, active: &dyn Fn(NodeId) 
             term(a, Factor::Times(sign), false);
         }
         Op::Sqrt(a) => {
+            let inside = above_tiny(b, a);
             let half = b.constant(0.5);
-            let slope = b.div(half, node);
-            let guarded = guard_above_tiny(b, a, slope);
-            term(a, Factor::Times(guarded), false);
+            let slope = guarded_quotient(b, inside, half, node);
+            term(a, Factor::Times(slope), false);
         }
         Op::Sin(a) => {
             let c = b.cos(a);
@@ -142,10 +142,10 @@ pub(crate) fn local_rule(b: &mut Builder, node: NodeId, active: &dyn Fn(NodeId) 
         }
         Op::Exp(a) => term(a, Factor::Times(node), false),
         Op::Log(a) => {
+            let inside = above_tiny(b, a);
             let one = b.constant(1.0);
-            let reciprocal = b.div(one, a);
-            let guarded = guard_above_tiny(b, a, reciprocal);
-            term(a, Factor::Times(guarded), false);
+            let slope = guarded_quotient(b, inside, one, a);
+            term(a, Factor::Times(slope), false);
         }
         Op::Add(a, b_) => {
             term(a, Factor::One, false);
@@ -185,11 +185,9 @@ pub(crate) fn local_rule(b: &mut Builder, node: NodeId, active: &dyn Fn(NodeId) 
         Op::Atan2(y, x) => {
             let (xx, yy) = (b.mul(x, x), b.mul(y, y));
             let radius_sq = b.add(xx, yy);
-            let one = b.constant(1.0);
-            let reciprocal = b.div(one, radius_sq);
-            let zero = b.constant(0.0);
+            let (zero, one) = (b.constant(0.0), b.constant(1.0));
             let away_from_origin = b.lt(zero, radius_sq);
-            let inverse_radius_sq = b.select(away_from_origin, reciprocal, zero);
+            let inverse_radius_sq = guarded_quotient(b, away_from_origin, one, radius_sq);
             if active(y) {
                 let slope = b.mul(x, inverse_radius_sq);
                 term(y, Factor::Times(slope), false);
@@ -207,12 +205,21 @@ pub(crate) fn local_rule(b: &mut Builder, node: NodeId, active: &dyn Fn(NodeId) 
     LocalRule::Linear(terms)
 }
 
-/// `select(x > DOMAIN_GUARD, value, 0)`.
-fn guard_above_tiny(b: &mut Builder, x: NodeId, value: NodeId) -> NodeId {
+/// `x > DOMAIN_GUARD`.
+fn above_tiny(b: &mut Builder, x: NodeId) -> NodeId {
     let tiny = b.constant(DOMAIN_GUARD);
-    let inside = b.lt(tiny, x);
-    let zero = b.constant(0.0);
-    b.select(inside, value, zero)
+    b.lt(tiny, x)
+}
+
+/// `numerator / denominator` where `inside`, else 0, without ever dividing by the denominator
+/// outside: an infinite intermediate in the branch a select discards would still turn into NaN
+/// in reverse mode (the discarded branch gets a zero adjoint, and 0 · inf is NaN), for example
+/// in the adjoint of a program that contains a derivative (normals from height).
+fn guarded_quotient(b: &mut Builder, inside: NodeId, numerator: NodeId, denominator: NodeId) -> NodeId {
+    let (zero, one) = (b.constant(0.0), b.constant(1.0));
+    let safe_denominator = b.select(inside, denominator, one);
+    let quotient = b.div(numerator, safe_denominator);
+    b.select(inside, quotient, zero)
 }
 
 /// Adds `± contribution` to an optional running sum.
