@@ -39,9 +39,19 @@ impl<'s> Lowerer<'s> {
         self.errors.borrow_mut().push(ParseError::new(message, span).with_hint(hint));
     }
 
+    /// The span of a pair, without trailing whitespace and comments.
+    ///
+    /// pest ends a rule after the trivia it skipped before an optional or repeated
+    /// part that then did not match (`expr ~ semi?`), so a rule's own end can lie past
+    /// its last token. The last token never does: follow the last children down to it.
     pub(crate) fn span(&self, pair: &Pair) -> Span {
-        let span = pair.as_span();
-        Span::new(span.start() + self.base, span.end() + self.base)
+        let start = pair.as_span().start();
+        let mut last = pair.clone();
+        while let Some(child) = last.clone().into_inner().last() {
+            last = child;
+        }
+        let end = last.as_span().end().max(start);
+        Span::new(start + self.base, end + self.base)
     }
 
     pub(crate) fn ident(&self, pair: Pair) -> Ident {

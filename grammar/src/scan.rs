@@ -228,9 +228,13 @@ impl Scanner<'_> {
                 );
                 self.error(format!("mismatched `{name}`"), Span::new(at, at + 1), Some(&hint));
                 // If an outer bracket matches, the inner ones were left unclosed: resume
-                // there. Otherwise this closer is simply stray.
-                if let Some(depth) = self.open.iter().rposition(|&(o, _)| matching_close(o) == close) {
-                    self.open.truncate(depth);
+                // there. Otherwise take it for a typo (`g(1.0]`) that closes the
+                // innermost bracket, so that one slip gives one error.
+                match self.open.iter().rposition(|&(o, _)| matching_close(o) == close) {
+                    Some(depth) => self.open.truncate(depth),
+                    None => {
+                        self.open.pop();
+                    }
                 }
             }
             None => {

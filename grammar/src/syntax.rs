@@ -131,7 +131,7 @@ fn expected_found(positives: &[Rule], src: &str, at: usize, base: usize) -> Pars
         format!("expected {}, found {found}", join_or(&expected))
     };
     let mut error = ParseError::new(message, shift(span, base));
-    error.hint = hint_for(&expected, &src[span.start..span.end]);
+    error.hint = hint_for(&expected, src, span);
     error
 }
 
@@ -143,9 +143,27 @@ fn summarise(labels: &mut Vec<(Group, &str)>, members: &[&str], summary: &'stati
     }
 }
 
-fn hint_for(expected: &[&str], found_text: &str) -> Option<String> {
+fn hint_for(expected: &[&str], src: &str, found: Span) -> Option<String> {
+    let found_text = &src[found.start..found.end];
+    let is_word = found_text.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_');
     if KEYWORDS.contains(&found_text) && expected.contains(&"a name") {
         return Some(format!("`{found_text}` is a keyword and cannot be used as a name"));
+    }
+    if is_word && !KEYWORDS.contains(&found_text) && expected.iter().any(|e| e.starts_with("a graph member")) {
+        return Some(format!(
+            "graph members start with a keyword: `output {found_text} = …`, `node {found_text} = …`, `param {found_text} = …`"
+        ));
+    }
+    if expected.contains(&"`;`") {
+        // The usual cause: the previous line lacks its `;`.
+        let previous = src[..found.start].trim_end();
+        if !previous.is_empty() && src[previous.len()..found.start].contains('\n') {
+            let (line, _) = crate::error::line_col(src, previous.len());
+            return Some(format!("is a `;` missing at the end of line {line}?"));
+        }
+    }
+    if found_text == "}" && expected.contains(&"`=`, `+=`, `-=`, `*=` or `/=`") {
+        return Some("a `for` body has no value: it holds only statements (`let`, `var`, assignments, `for`)".to_owned());
     }
     if expected.contains(&"`else`") {
         return Some("`if` is an expression: it needs an `else` branch".to_owned());

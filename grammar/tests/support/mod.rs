@@ -160,3 +160,159 @@ pub fn render_errors(src: &str, errors: &[ParseError]) -> String {
     }
     out
 }
+
+/// Calls `f` with the kind and span of every node of the file (items, members,
+/// statements, blocks, expressions, types, names), parents before children.
+pub fn for_each_span(file: &File, f: &mut dyn FnMut(&str, Span)) {
+    for item in &file.items {
+        match item {
+            Item::Import(import) => {
+                f("import", import.span);
+                import.path.iter().for_each(|i| ident(i, f));
+            }
+            Item::Const(c) => const_def(c, f),
+            Item::Fn(func) => {
+                f("fn", func.span);
+                ident(&func.name, f);
+                for p in &func.params {
+                    f("fn_param", p.span);
+                    ident(&p.name, f);
+                    type_spans(&p.ty, f);
+                    p.default.iter().for_each(|d| expr_spans(d, f));
+                }
+                type_spans(&func.ret, f);
+                block_spans(&func.body, f);
+            }
+            Item::Graph(g) => {
+                f("graph", g.span);
+                ident(&g.name, f);
+                for member in &g.members {
+                    member_spans(member, f);
+                }
+            }
+        }
+    }
+}
+
+fn ident(i: &Ident, f: &mut dyn FnMut(&str, Span)) {
+    f("ident", i.span);
+}
+
+fn const_def(c: &ConstDef, f: &mut dyn FnMut(&str, Span)) {
+    f("const", c.span);
+    ident(&c.name, f);
+    expr_spans(&c.value, f);
+}
+
+fn member_spans(member: &GraphMember, f: &mut dyn FnMut(&str, Span)) {
+    match member {
+        GraphMember::Category(name, span) => {
+            f("category", *span);
+            ident(name, f);
+        }
+        GraphMember::Description(_, span) => f("description", *span),
+        GraphMember::Param(p) => {
+            f("param", p.span);
+            ident(&p.name, f);
+            expr_spans(&p.default, f);
+            if let Some((lo, hi, span)) = &p.range {
+                f("range", *span);
+                expr_spans(lo, f);
+                expr_spans(hi, f);
+            }
+        }
+        GraphMember::Node { name, value, span } | GraphMember::Output { name, value, span } => {
+            f("member", *span);
+            ident(name, f);
+            expr_spans(value, f);
+        }
+        GraphMember::Const(c) => const_def(c, f),
+    }
+}
+
+fn type_spans(t: &TypeExpr, f: &mut dyn FnMut(&str, Span)) {
+    f("type", t.span());
+    if let TypeExpr::Record(fields, _) = t {
+        for (name, t) in fields {
+            ident(name, f);
+            type_spans(t, f);
+        }
+    }
+}
+
+fn block_spans(block: &Block, f: &mut dyn FnMut(&str, Span)) {
+    f("block", block.span);
+    for s in &block.stmts {
+        match s {
+            Stmt::Let { name, ty, value, span, .. } => {
+                f("let", *span);
+                ident(name, f);
+                ty.iter().for_each(|t| type_spans(t, f));
+                expr_spans(value, f);
+            }
+            Stmt::Assign { target, value, span, .. } => {
+                f("assign", *span);
+                ident(target, f);
+                expr_spans(value, f);
+            }
+            Stmt::For { var, start, end, body, span } => {
+                f("for", *span);
+                ident(var, f);
+                expr_spans(start, f);
+                expr_spans(end, f);
+                block_spans(body, f);
+            }
+        }
+    }
+    block.tail.iter().for_each(|t| expr_spans(t, f));
+}
+
+fn expr_spans(e: &Expr, f: &mut dyn FnMut(&str, Span)) {
+    f("expr", e.span);
+    match &e.kind {
+        ExprKind::Float(_) | ExprKind::Int(_) | ExprKind::Bool(_) => {}
+        ExprKind::Name(name) => ident(name, f),
+        ExprKind::Unary(_, x) => expr_spans(x, f),
+        ExprKind::Binary(_, l, r) => {
+            expr_spans(l, f);
+            expr_spans(r, f);
+        }
+        ExprKind::Call(name, args) => {
+            ident(name, f);
+            for arg in args {
+                arg.name.iter().for_each(|n| ident(n, f));
+                expr_spans(&arg.value, f);
+            }
+        }
+        ExprKind::Field(x, name) => {
+            expr_spans(x, f);
+            ident(name, f);
+        }
+        ExprKind::Record(fields) => {
+            for (name, value) in fields {
+                ident(name, f);
+                expr_spans(value, f);
+            }
+        }
+        ExprKind::If(c, a, b) => {
+            expr_spans(c, f);
+            block_spans(a, f);
+            block_spans(b, f);
+        }
+        ExprKind::Block(b) => block_spans(b, f),
+    }
+}
+
+/// Checks the invariants every span must satisfy: inside `src`, on char boundaries,
+/// not reversed.
+pub fn assert_span_valid(src: &str, what: &str, span: Span) {
+    assert!(
+        span.start <= span.end && span.end <= src.len(),
+        "{what} span {span:?} outside input of {} bytes",
+        src.len()
+    );
+    assert!(
+        src.is_char_boundary(span.start) && src.is_char_boundary(span.end),
+        "{what} span {span:?} not on char boundaries"
+    );
+}
