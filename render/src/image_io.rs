@@ -1,0 +1,155 @@
+//! Image input and output: sRGB PNG/JPEG (8/16 bit), linear EXR, label images, and atomic
+//! writes (every output goes to a temporary file in the destination folder, then is renamed).
+
+use std::io::{Cursor, Write};
+use std::path::{Path, PathBuf};
+
+use crate::RenderError;
+
+/// A linear RGB float image, row 0 at the top.
+#[derive(Clone, Debug)]
+pub struct RgbImage {
+    pub width: usize,
+    pub height: usize,
+    pub data: Vec<[f32; 3]>,
+}
+
+#[inline]
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
+#[inline]
+pub fn linear_to_srgb(c: f32) -> f32 {
+    let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
+    if c <= 0.003_130_8 { c * 12.92 } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 }
+}
+
+fn is_exr(path: &Path) -> bool {
+    path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+}
+
+/// Width and height of a PNG/JPEG/EXR without decoding its pixels.
+pub fn dimensions(path: &Path) -> Result<(usize, usize), RenderError> {
+    if !path.is_file() {
+        return Err(RenderError::io(path, "file not found"));
+    }
+    if is_exr(path) {
+        let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| RenderError::image(path, e))?;
+        let header = meta.headers.first().ok_or_else(|| RenderError::image(path, "EXR without layers"))?;
+        Ok((header.layer_size.width(), header.layer_size.height()))
+    } else {
+        let (w, h) = image::image_dimensions(path).map_err(|e| RenderError::image(path, e))?;
+        Ok((w as usize, h as usize))
+    }
+}
+
+/// Read an RGB image as linear floats. PNG/JPEG values are decoded from sRGB when `srgb`
+/// (else divided by the format's maximum); EXR is taken as linear.
+pub fn read_rgb(path: &Path, srgb: bool) -> Result<RgbImage, RenderError> {
+    if !path.is_file() {
+        return Err(RenderError::io(path, "file not found"));
+    }
+    if is_exr(path) {
+        let img = exr::prelude::read_first_rgba_layer_from_file(
+            path,
+            |res, _| RgbImage { width: res.width(), height: res.height(), data: vec![[0.0; 3]; res.width() * res.height()] },
+            |img: &mut RgbImage, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                let w = img.width;
+                img.data[pos.y() * w + pos.x()] = [r, g, b];
+            },
+        )
+        .map_err(|e| RenderError::image(path, e))?;
+        return Ok(img.layer_data.channel_data.pixels);
+    }
+    let dynimg = image::open(path).map_err(|e| RenderError::image(path, e))?;
+    let img = dynimg.to_rgb32f(); // 8/16-bit values mapped to [0, 1]
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let conv = |c: f32| if srgb { srgb_to_linear(c) } else { c };
+    let data = img.pixels().map(|p| [conv(p[0]), conv(p[1]), conv(p[2])]).collect();
+    Ok(RgbImage { width: w, height: h, data })
+}
+
+/// Read a part-label image: 8- or 16-bit grayscale PNG, values returned as stored.
+pub fn read_labels(path: &Path) -> Result<(usize, usize, Vec<u16>), RenderError> {
+    if !path.is_file() {
+        return Err(RenderError::io(path, "file not found"));
+    }
+    let dynimg = image::open(path).map_err(|e| RenderError::image(path, e))?;
+    let (w, h) = (dynimg.width() as usize, dynimg.height() as usize);
+    let data = match dynimg {
+        image::DynamicImage::ImageLuma8(b) => b.into_raw().into_iter().map(u16::from).collect(),
+        image::DynamicImage::ImageLuma16(b) => b.into_raw(),
+        other => {
+            return Err(RenderError::image(path, format!("a label image must be 8- or 16-bit grayscale, this one is {:?}", other.color())));
+        }
+    };
+    Ok((w, h, data))
+}
+
+/// Write `bytes` to `path` through a temporary file in the same folder and a rename, so that a
+/// reader never sees a half-written file.
+pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<(), RenderError> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path.file_name().ok_or_else(|| RenderError::io(path, "not a file path"))?;
+    let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(RenderError::io(path, e));
+    }
+    Ok(())
+}
+
+/// Encode an RGB float image as an uncompressed-float EXR in memory.
+pub fn encode_exr(width: usize, height: usize, data: &[[f32; 3]]) -> Result<Vec<u8>, RenderError> {
+    use exr::prelude::*;
+    let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
+        let p = data[y * width + x];
+        (p[0], p[1], p[2])
+    });
+    let mut image = Image::from_channels((width, height), channels);
+    image.layer_data.encoding = Encoding::FAST_LOSSLESS;
+    let mut buf = Cursor::new(Vec::new());
+    image.write().to_buffered(&mut buf).map_err(|e| RenderError::Invalid(format!("EXR encoding failed: {e}")))?;
+    Ok(buf.into_inner())
+}
+
+fn encode_png(img: image::DynamicImage) -> Result<Vec<u8>, RenderError> {
+    let mut buf = Cursor::new(Vec::new());
+    img.write_to(&mut buf, image::ImageFormat::Png).map_err(|e| RenderError::Invalid(format!("PNG encoding failed: {e}")))?;
+    Ok(buf.into_inner())
+}
+
+/// Write a linear image: `.exr` as linear float, `.png` as 8-bit sRGB (clipped to [0, 1]).
+pub fn write_rgb(path: &Path, width: usize, height: usize, data: &[[f32; 3]]) -> Result<(), RenderError> {
+    assert_eq!(data.len(), width * height);
+    let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+    let bytes = match ext.as_deref() {
+        Some("exr") => encode_exr(width, height, data)?,
+        Some("png") => {
+            let raw: Vec<u8> = data
+                .iter()
+                .flat_map(|p| p.map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8))
+                .collect();
+            let buf = image::RgbImage::from_raw(width as u32, height as u32, raw).expect("sized buffer");
+            encode_png(image::DynamicImage::ImageRgb8(buf))?
+        }
+        _ => return Err(RenderError::Invalid(format!("{}: output must end in .exr (linear) or .png (sRGB)", path.display()))),
+    };
+    atomic_write(path, &bytes)
+}
+
+/// Write a 16-bit grayscale PNG (label images, part ids).
+pub fn write_gray16(path: &Path, width: usize, height: usize, data: &[u16]) -> Result<(), RenderError> {
+    let buf = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(width as u32, height as u32, data.to_vec()).expect("sized buffer");
+    atomic_write(path, &encode_png(image::DynamicImage::ImageLuma16(buf))?)
+}

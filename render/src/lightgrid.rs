@@ -1,0 +1,248 @@
+//! Per-pixel incoming-light grids: the lighting representation the fit's shading layer uses.
+//!
+//! For each grid cell (the pixel at `(gx·stride + stride/2, gy·stride + stride/2)`), the camera
+//! ray through that pixel's centre finds a surface point; around it, in the local frame
+//! (z = shading normal facing the camera, x = unit tangent along dp/du, y = z × x), the
+//! hemisphere is split into [`GRID_THETA_BINS`] polar bins of equal angle over [0, π/2] and
+//! [`GRID_PHI_BINS`] azimuth bins over [0, 2π) (φ from x towards y). Each bin holds the mean
+//! incoming radiance over its solid angle, estimated with `samples_per_bin` directions drawn
+//! uniformly in solid angle inside the bin, each traced as a full path (remaining depth
+//! `max_depth − 1`, so that shading the grid reproduces a `max_depth` render).
+//!
+//! File format (`save`): `lightgrid.json` (header, below) and `lightgrid.bin` (little-endian
+//! arrays at the byte offsets the header lists). Arrays: `radiance` f32 [gh, gw, θ, φ, 3]
+//! (radiance with the render's light radiances), `valid` u8 [gh, gw] (1 = the cell sees the
+//! model), `part_id` u16 [gh, gw] (G-buffer convention), `position`, `normal`, `tangent` f32
+//! [gh, gw, 3], and with per-light grids one `radiance:<light>` array per light slot at unit
+//! radiance (`radiance` = Σ radiance_k · `radiance:<k>`).
+
+use std::f32::consts::PI;
+use std::path::Path;
+
+use glam::Vec3;
+use rayon::prelude::*;
+use serde_json::json;
+
+use crate::camera::Camera;
+use crate::geometry::Traced;
+use crate::image_io;
+use crate::integrator::{progress_bar, run_in_pool, PathState, Renderer};
+use crate::rng::Rng;
+use crate::RenderError;
+
+pub const GRID_THETA_BINS: usize = 8;
+pub const GRID_PHI_BINS: usize = 16;
+const BINS: usize = GRID_THETA_BINS * GRID_PHI_BINS;
+
+#[derive(Clone, Debug)]
+pub struct LightGridOptions {
+    /// One cell every `stride` pixels in x and y (1 = every pixel).
+    pub stride: usize,
+    pub samples_per_bin: u32,
+    pub seed: u64,
+    pub max_depth: u32,
+    pub rr_depth: u32,
+    pub threads: Option<usize>,
+    pub progress: bool,
+    /// Keep one grid per light slot.
+    pub per_light: bool,
+}
+
+impl Default for LightGridOptions {
+    fn default() -> Self {
+        LightGridOptions { stride: 8, samples_per_bin: 4, seed: 0, max_depth: 6, rr_depth: 5, threads: None, progress: false, per_light: false }
+    }
+}
+
+pub struct LightGrid {
+    pub image_width: usize,
+    pub image_height: usize,
+    pub stride: usize,
+    pub grid_width: usize,
+    pub grid_height: usize,
+    pub valid: Vec<u8>,
+    pub part_id: Vec<u16>,
+    pub position: Vec<[f32; 3]>,
+    pub normal: Vec<[f32; 3]>,
+    pub tangent: Vec<[f32; 3]>,
+    /// [gh, gw, θ, φ, 3] with the renderer's light radiances.
+    pub radiance: Vec<f32>,
+    /// (slot name, [gh, gw, θ, φ, 3] at unit radiance), when requested.
+    pub per_slot: Vec<(String, Vec<f32>)>,
+}
+
+/// Direction (local frame) for bin (i, j) and a uniform sample `u`: uniform in solid angle.
+#[inline]
+pub fn bin_direction(i: usize, j: usize, u: [f32; 2]) -> Vec3 {
+    let c0 = (i as f32 * (PI / 2.0) / GRID_THETA_BINS as f32).cos();
+    let c1 = ((i + 1) as f32 * (PI / 2.0) / GRID_THETA_BINS as f32).cos();
+    let cos_t = c0 - u[0] * (c0 - c1);
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = (j as f32 + u[1]) * 2.0 * PI / GRID_PHI_BINS as f32;
+    Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t)
+}
+
+/// Solid angle of polar bin i (same for every φ bin).
+pub fn bin_solid_angle(i: usize) -> f32 {
+    let c0 = (i as f32 * (PI / 2.0) / GRID_THETA_BINS as f32).cos();
+    let c1 = ((i + 1) as f32 * (PI / 2.0) / GRID_THETA_BINS as f32).cos();
+    (c0 - c1) * 2.0 * PI / GRID_PHI_BINS as f32
+}
+
+struct Cell {
+    valid: bool,
+    part: u16,
+    p: [f32; 3],
+    n: [f32; 3],
+    t: [f32; 3],
+    /// [slot][bin] rgb
+    slots: Vec<Vec3>,
+}
+
+/// Estimate the grid for `camera` (at its resolution).
+pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions) -> Result<LightGrid, RenderError> {
+    if opts.stride == 0 || opts.samples_per_bin == 0 {
+        return Err(RenderError::Invalid("light grid stride and samples per bin must be positive".into()));
+    }
+    let (w, h) = (camera.width, camera.height);
+    let (gw, gh) = (w.div_ceil(opts.stride), h.div_ceil(opts.stride));
+    let ns = r.n_slots();
+    let n_parts = r.part_names.len() as u32;
+    let bar = progress_bar(opts.progress, (gw * gh) as u64, "light grid");
+    let cells: Vec<Cell> = run_in_pool(opts.threads, || {
+        (0..gw * gh)
+            .into_par_iter()
+            .map(|c| {
+                let x = ((c % gw) * opts.stride + opts.stride / 2).min(w - 1);
+                let y = ((c / gw) * opts.stride + opts.stride / 2).min(h - 1);
+                let d = camera.direction(x as f32 + 0.5, y as f32 + 0.5);
+                let mut cell = Cell { valid: false, part: 0, p: [0.0; 3], n: [0.0; 3], t: [0.0; 3], slots: vec![Vec3::ZERO; ns * BINS] };
+                let hit = match r.geometry.trace(camera.position, d, f32::INFINITY) {
+                    Traced::Surface(hit) => hit,
+                    Traced::Emitter { light, .. } => {
+                        cell.part = (n_parts + 1 + light) as u16;
+                        bar.inc(1);
+                        return cell;
+                    }
+                    Traced::Miss => {
+                        bar.inc(1);
+                        return cell;
+                    }
+                };
+                let tn = r.materials[hit.part as usize].eval(hit.uv).normal;
+                let sf = r.geometry.shading_frame(&hit, -d, tn);
+                let frame = crate::brdf::Frame::new(sf.frame.n, sf.tangent);
+                let origin = r.geometry.offset(hit.p, sf.ng);
+                let mut acc = vec![Vec3::ZERO; ns];
+                let inv = 1.0 / opts.samples_per_bin as f32;
+                for i in 0..GRID_THETA_BINS {
+                    for j in 0..GRID_PHI_BINS {
+                        let b = i * GRID_PHI_BINS + j;
+                        acc.iter_mut().for_each(|a| *a = Vec3::ZERO);
+                        for s in 0..opts.samples_per_bin {
+                            let mut st = PathState { rng: Rng::new(opts.seed, c as u64, (b as u64) << 32 | s as u64), rays: 0, out: &mut acc };
+                            let u = st.rng.next_2d();
+                            let dir = frame.to_world(bin_direction(i, j, u));
+                            if dir.dot(sf.ng) > 0.0 {
+                                r.li(origin, dir, opts.max_depth.saturating_sub(1), opts.rr_depth, opts.per_light, &mut st);
+                            }
+                        }
+                        for k in 0..ns {
+                            cell.slots[k * BINS + b] = acc[k] * inv;
+                        }
+                    }
+                }
+                cell.valid = true;
+                cell.part = (hit.part + 1) as u16;
+                cell.p = hit.p.to_array();
+                cell.n = frame.n.to_array();
+                cell.t = frame.t.to_array();
+                bar.inc(1);
+                cell
+            })
+            .collect()
+    })?;
+    bar.finish_and_clear();
+    let mut radiance = vec![0.0f32; gw * gh * BINS * 3];
+    let mut per_slot: Vec<(String, Vec<f32>)> =
+        if opts.per_light { r.slot_names.iter().map(|n| (n.clone(), vec![0.0f32; gw * gh * BINS * 3])).collect() } else { Vec::new() };
+    for (c, cell) in cells.iter().enumerate() {
+        for b in 0..BINS {
+            let mut sum = Vec3::ZERO;
+            for k in 0..ns {
+                let v = cell.slots[k * BINS + b];
+                sum += v * r.slot_radiance[k];
+                if opts.per_light {
+                    per_slot[k].1[(c * BINS + b) * 3..(c * BINS + b) * 3 + 3].copy_from_slice(&v.to_array());
+                }
+            }
+            radiance[(c * BINS + b) * 3..(c * BINS + b) * 3 + 3].copy_from_slice(&sum.to_array());
+        }
+    }
+    Ok(LightGrid {
+        image_width: w,
+        image_height: h,
+        stride: opts.stride,
+        grid_width: gw,
+        grid_height: gh,
+        valid: cells.iter().map(|c| c.valid as u8).collect(),
+        part_id: cells.iter().map(|c| c.part).collect(),
+        position: cells.iter().map(|c| c.p).collect(),
+        normal: cells.iter().map(|c| c.n).collect(),
+        tangent: cells.iter().map(|c| c.t).collect(),
+        radiance,
+        per_slot,
+    })
+}
+
+impl LightGrid {
+    /// Mean radiance of bin (θ i, φ j) at cell (gx, gy).
+    pub fn at(&self, gx: usize, gy: usize, i: usize, j: usize) -> [f32; 3] {
+        let o = (((gy * self.grid_width + gx) * GRID_THETA_BINS + i) * GRID_PHI_BINS + j) * 3;
+        [self.radiance[o], self.radiance[o + 1], self.radiance[o + 2]]
+    }
+
+    /// Write `dir/lightgrid.json` and `dir/lightgrid.bin` (format in the module docs).
+    pub fn save(&self, dir: &Path) -> Result<(), RenderError> {
+        std::fs::create_dir_all(dir).map_err(|e| RenderError::io(dir, e))?;
+        let (gw, gh) = (self.grid_width, self.grid_height);
+        let mut bin: Vec<u8> = Vec::new();
+        let mut arrays = Vec::new();
+        let mut push = |name: &str, dtype: &str, shape: Vec<usize>, bytes: Vec<u8>, bin: &mut Vec<u8>| {
+            while bin.len() % 16 != 0 {
+                bin.push(0);
+            }
+            arrays.push(json!({"name": name, "dtype": dtype, "shape": shape, "offset": bin.len(), "bytes": bytes.len()}));
+            bin.extend_from_slice(&bytes);
+        };
+        let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+        let vec3s = |v: &[[f32; 3]]| v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+        let grid_shape = vec![gh, gw, GRID_THETA_BINS, GRID_PHI_BINS, 3];
+        push("radiance", "f32le", grid_shape.clone(), f32s(&self.radiance), &mut bin);
+        push("valid", "u8", vec![gh, gw], self.valid.clone(), &mut bin);
+        push("part_id", "u16le", vec![gh, gw], self.part_id.iter().flat_map(|x| x.to_le_bytes()).collect(), &mut bin);
+        push("position", "f32le", vec![gh, gw, 3], vec3s(&self.position), &mut bin);
+        push("normal", "f32le", vec![gh, gw, 3], vec3s(&self.normal), &mut bin);
+        push("tangent", "f32le", vec![gh, gw, 3], vec3s(&self.tangent), &mut bin);
+        for (name, data) in &self.per_slot {
+            push(&format!("radiance:{name}"), "f32le", grid_shape.clone(), f32s(data), &mut bin);
+        }
+        let header = json!({
+            "format": "photoscene-lightgrid/1",
+            "image_size": [self.image_width, self.image_height],
+            "stride": self.stride,
+            "grid_size": [gw, gh],
+            "cell_pixel": "cell (gx, gy) is the pixel (min(gx*stride + stride/2, W-1), min(gy*stride + stride/2, H-1)), sampled at its centre",
+            "theta_bins": GRID_THETA_BINS,
+            "phi_bins": GRID_PHI_BINS,
+            "bins": "theta bin i covers [i, i+1]·(π/2)/8 from the normal; phi bin j covers [j, j+1]·2π/16 from the tangent towards normal × tangent",
+            "frame": "z = shading normal facing the camera, x = tangent (dp/du made orthogonal to z), y = z × x (world-space normal and tangent arrays below)",
+            "value": "mean incoming radiance over the bin's solid angle (linear RGB)",
+            "data_file": "lightgrid.bin",
+            "arrays": arrays,
+        });
+        image_io::atomic_write(&dir.join("lightgrid.bin"), &bin)?;
+        let text = serde_json::to_vec_pretty(&header).map_err(|e| RenderError::Invalid(e.to_string()))?;
+        image_io::atomic_write(&dir.join("lightgrid.json"), &text)
+    }
+}

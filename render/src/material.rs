@@ -1,0 +1,211 @@
+//! The material interface the renderer shades with, and its two built-in implementations.
+//!
+//! A material maps a texture coordinate to a [`SurfaceSample`] (linear albedo, roughness,
+//! tangent-space normal). The runtime implements [`SurfaceMaterial`] for compiled procedural
+//! graphs; render only knows the trait. A [`MaterialBinding`] attaches a material to one part
+//! with a uv transform and albedo/roughness scales.
+//!
+//! uv convention (OBJ): u to the right, v up; for images, v = 0 is the bottom row and v = 1 the
+//! top row. Wrap: repeat. Filter: bilinear with texel centres at (i + ½)/size.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use crate::image_io;
+use crate::RenderError;
+
+/// What a material says about one surface point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceSample {
+    /// Linear RGB albedo (diffuse reflectance), normally in [0, 1].
+    pub albedo: [f32; 3],
+    /// Perceptual roughness r (α = r²), in [0, 1].
+    pub roughness: f32,
+    /// Tangent-space normal (x along dp/du, y along dp/dv, z along the surface normal); need not
+    /// be normalised. `[0, 0, 1]` means no perturbation.
+    pub normal: [f32; 3],
+}
+
+impl Default for SurfaceSample {
+    fn default() -> Self {
+        SurfaceSample { albedo: [0.5; 3], roughness: 0.5, normal: [0.0, 0.0, 1.0] }
+    }
+}
+
+/// A material evaluated at texture coordinates. Implementations must be deterministic.
+pub trait SurfaceMaterial: Send + Sync {
+    fn eval(&self, uv: [f32; 2]) -> SurfaceSample;
+
+    /// Evaluate many points at once (`out.len() == uvs.len()`); override for SIMD/JIT batches.
+    fn eval_batch(&self, uvs: &[[f32; 2]], out: &mut [SurfaceSample]) {
+        for (uv, o) in uvs.iter().zip(out.iter_mut()) {
+            *o = self.eval(*uv);
+        }
+    }
+}
+
+/// The same sample everywhere.
+#[derive(Clone, Debug)]
+pub struct ConstantMaterial {
+    pub albedo: [f32; 3],
+    pub roughness: f32,
+}
+
+impl SurfaceMaterial for ConstantMaterial {
+    fn eval(&self, _uv: [f32; 2]) -> SurfaceSample {
+        SurfaceSample { albedo: self.albedo, roughness: self.roughness, normal: [0.0, 0.0, 1.0] }
+    }
+}
+
+/// A linear RGB image sampled bilinearly with repeat wrapping, OBJ v-up convention.
+#[derive(Clone, Debug)]
+pub struct Texture {
+    pub width: usize,
+    pub height: usize,
+    /// Row-major, row 0 = top of the image.
+    pub data: Vec<[f32; 3]>,
+}
+
+impl Texture {
+    pub fn new(width: usize, height: usize, data: Vec<[f32; 3]>) -> Result<Self, RenderError> {
+        if width == 0 || height == 0 || data.len() != width * height {
+            return Err(RenderError::Invalid(format!("texture of {width}x{height} needs {} texels, got {}", width * height, data.len())));
+        }
+        Ok(Texture { width, height, data })
+    }
+
+    /// Load an 8/16-bit PNG/JPEG (decoded from sRGB when `srgb`, else taken as linear /255) or a
+    /// linear EXR.
+    pub fn load(path: &Path, srgb: bool) -> Result<Self, RenderError> {
+        let img = image_io::read_rgb(path, srgb)?;
+        Texture::new(img.width, img.height, img.data)
+    }
+
+    /// Bilinear lookup at OBJ-convention (u, v), repeat wrap.
+    pub fn sample(&self, uv: [f32; 2]) -> [f32; 3] {
+        let (w, h) = (self.width as f32, self.height as f32);
+        let u = uv[0] - uv[0].floor();
+        let v = uv[1] - uv[1].floor();
+        let x = u * w - 0.5;
+        let y = (1.0 - v) * h - 0.5;
+        if !x.is_finite() || !y.is_finite() {
+            return self.data[0];
+        }
+        let x0f = x.floor();
+        let y0f = y.floor();
+        let fx = x - x0f;
+        let fy = y - y0f;
+        let wrap = |i: f32, n: usize| -> usize { (i as i64).rem_euclid(n as i64) as usize };
+        let x0 = wrap(x0f, self.width);
+        let x1 = wrap(x0f + 1.0, self.width);
+        let y0 = wrap(y0f, self.height);
+        let y1 = wrap(y0f + 1.0, self.height);
+        let t = |xx: usize, yy: usize| self.data[yy * self.width + xx];
+        let (a, b, c, d) = (t(x0, y0), t(x1, y0), t(x0, y1), t(x1, y1));
+        let mut out = [0.0; 3];
+        for k in 0..3 {
+            let top = a[k] + (b[k] - a[k]) * fx;
+            let bot = c[k] + (d[k] - c[k]) * fx;
+            out[k] = top + (bot - top) * fy;
+        }
+        out
+    }
+}
+
+/// Roughness of an [`ImageMaterial`]: a constant or the first channel of a texture.
+#[derive(Clone, Debug)]
+pub enum RoughnessSource {
+    Constant(f32),
+    Texture(Texture),
+}
+
+/// Albedo from an image texture, roughness constant or from a texture, optional tangent-space
+/// normal map (RGB in [0,1] encoding [-1,1], linear).
+#[derive(Clone, Debug)]
+pub struct ImageMaterial {
+    pub albedo: Texture,
+    pub roughness: RoughnessSource,
+    pub normal_map: Option<Texture>,
+}
+
+impl ImageMaterial {
+    pub fn new(albedo: Texture, roughness: f32) -> Self {
+        ImageMaterial { albedo, roughness: RoughnessSource::Constant(roughness), normal_map: None }
+    }
+    pub fn with_normal_map(mut self, map: Texture) -> Self {
+        self.normal_map = Some(map);
+        self
+    }
+}
+
+impl SurfaceMaterial for ImageMaterial {
+    fn eval(&self, uv: [f32; 2]) -> SurfaceSample {
+        let roughness = match &self.roughness {
+            RoughnessSource::Constant(r) => *r,
+            RoughnessSource::Texture(t) => t.sample(uv)[0],
+        };
+        let normal = match &self.normal_map {
+            Some(t) => {
+                let n = t.sample(uv);
+                [2.0 * n[0] - 1.0, 2.0 * n[1] - 1.0, 2.0 * n[2] - 1.0]
+            }
+            None => [0.0, 0.0, 1.0],
+        };
+        SurfaceSample { albedo: self.albedo.sample(uv), roughness, normal }
+    }
+}
+
+/// A material attached to one part.
+#[derive(Clone)]
+pub struct MaterialBinding {
+    pub material: Arc<dyn SurfaceMaterial>,
+    /// `(s, t) = M · (u, v, 1)`, rows of M.
+    pub uv_transform: [[f32; 3]; 2],
+    /// Multiplies the material's albedo (per channel).
+    pub albedo_scale: [f32; 3],
+    /// Multiplies the material's roughness.
+    pub roughness_scale: f32,
+}
+
+impl std::fmt::Debug for MaterialBinding {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MaterialBinding")
+            .field("uv_transform", &self.uv_transform)
+            .field("albedo_scale", &self.albedo_scale)
+            .field("roughness_scale", &self.roughness_scale)
+            .finish_non_exhaustive()
+    }
+}
+
+pub const IDENTITY_UV: [[f32; 3]; 2] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+
+impl MaterialBinding {
+    pub fn new(material: Arc<dyn SurfaceMaterial>) -> Self {
+        MaterialBinding { material, uv_transform: IDENTITY_UV, albedo_scale: [1.0; 3], roughness_scale: 1.0 }
+    }
+    pub fn constant(albedo: [f32; 3], roughness: f32) -> Self {
+        Self::new(Arc::new(ConstantMaterial { albedo, roughness }))
+    }
+    pub fn with_uv_transform(mut self, m: [[f32; 3]; 2]) -> Self {
+        self.uv_transform = m;
+        self
+    }
+
+    #[inline]
+    pub fn transform_uv(&self, uv: [f32; 2]) -> [f32; 2] {
+        let m = &self.uv_transform;
+        [m[0][0] * uv[0] + m[0][1] * uv[1] + m[0][2], m[1][0] * uv[0] + m[1][1] * uv[1] + m[1][2]]
+    }
+
+    /// Evaluate at the mesh uv: transform, evaluate, scale, clamp to the valid range.
+    pub fn eval(&self, uv: [f32; 2]) -> SurfaceSample {
+        let mut s = self.material.eval(self.transform_uv(uv));
+        for k in 0..3 {
+            let a = s.albedo[k] * self.albedo_scale[k];
+            s.albedo[k] = if a.is_finite() { a.max(0.0) } else { 0.0 };
+        }
+        let r = s.roughness * self.roughness_scale;
+        s.roughness = if r.is_finite() { r.clamp(0.0, 1.0) } else { 1.0 };
+        s
+    }
+}
