@@ -5,7 +5,7 @@
 //! Both modes emit IR through a [`Builder`], so derivative code is hash-consed with the values
 //! it differentiates (`cos(x)` for `d sin(x)` reuses a `cos(x)` the program already has) and
 //! constant-folded (a factor `1` or `0` disappears). Both use the same per-op rules, defined
-//! once in [`local_rule`], so forward and reverse agree by construction.
+//! once (`local_rule`, below), so forward and reverse agree by construction.
 //!
 //! # Activity
 //! A node is *active* when its derivative is not identically zero: it is the differentiation
@@ -30,6 +30,15 @@
 //! | `atan2(y, x)` | `(x y' - y x') / (x² + y²)`, `0` where `x² + y²` is `0` (origin or underflow) |
 //!
 //! `u`, `v` and `param i` differentiate to `1` or `0`; constants and seeds to `0`.
+//!
+//! # Non-finite values
+//! The guarded quotients (`sqrt`, `log`, `atan2`) never divide where their guard fails, so the
+//! derivative code of a program with finite values has finite values too, including in the
+//! branch a `select` discards. That matters for reverse mode, which multiplies the discarded
+//! branch's zero adjoint by its partials: `0 · inf` would be NaN. The remaining limit: where
+//! the *forward* program already has a non-finite intermediate in a discarded branch
+//! (`select(c, 0, sqrt(v) / 0)`), forward mode routes around it but the adjoint is NaN, as in
+//! other reverse-mode systems (JAX's `where`). The runtime reports such intermediates anyway.
 
 pub mod forward;
 pub mod reverse;
