@@ -1,11 +1,27 @@
-//! The photoscene compiler: from a parsed `.psg` file to checked graphs, the scalar IR, its
-//! symbolic derivatives, and a reference interpreter.
+//! The photoscene compiler: from `.psg` source to checked graphs, the scalar IR, its symbolic
+//! derivatives, and a reference interpreter.
 //!
-//! Owns: name resolution, type checking and diagnostics; lowering to the hash-consed IR;
-//! forward (d/du, d/dv) and reverse-mode differentiation; the interpreter that is the oracle
-//! for the JIT. Must never: generate native code, touch images or scenes, or panic on any
-//! input text (every problem with a source file is a [`diag::Diagnostic`]).
+//! Owns: module loading and imports, name resolution, type checking and diagnostics; lowering
+//! to the hash-consed IR; forward (d/du, d/dv) and reverse-mode differentiation; the
+//! interpreter that is the oracle for the JIT. Must never: generate native code, touch images
+//! or scenes, or panic on any input text (every problem with a source file is a
+//! [`diag::Diagnostic`]).
+//!
+//! Pipeline: [`session::compile_files`] → [`module::ModuleSet`] (parse, imports) →
+//! [`check::check_all`] → [`lower::lower_graph`] → [`graph::CompiledGraph`] (forward
+//! [`ir::Program`]) → [`graph::CompiledGraph::adjoint`].
 
-pub mod ir;
-pub mod interp;
+pub mod builtins;
+pub mod check;
+pub mod diag;
 pub mod diff;
+pub mod graph;
+pub mod interp;
+pub mod ir;
+pub mod lower;
+pub mod module;
+pub mod session;
+pub mod types;
+
+pub use graph::{CompiledGraph, GraphInfo, ParamInfo, ParamKind, CHANNELS};
+pub use session::{compile_files, compile_text, CompileOutput, Options};

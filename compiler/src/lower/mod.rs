@@ -1,0 +1,236 @@
+//! Lowering checked graphs to IR: every function call is inlined, every loop unrolled, every
+//! value becomes one IR node per scalar component.
+//!
+//! Runs only on modules that checked clean; the only errors it reports are resource limits.
+
+mod builtins;
+mod expr;
+
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::rc::Rc;
+use std::time::Instant;
+
+use psc_grammar::ast::{self, GraphMember, Span};
+
+use crate::diag::{Diagnostic, FileId};
+use crate::diff::forward::Wrt;
+use crate::graph::{CompileStats, CompiledGraph, GraphInfo, ParamInfo, ParamKind, CHANNELS};
+use crate::ir::{Builder, NodeId, Output};
+use crate::module::{ItemRef, ModuleId, ModuleSet};
+
+/// Lowering stops with an error past this many IR nodes: no material needs anywhere near it.
+pub const MAX_IR_NODES: usize = 2_000_000;
+
+/// A lowered value: one IR node per scalar component, or a record of values.
+#[derive(Clone, Debug)]
+pub(crate) enum Value {
+    /// float, int and bool are one component; vec2 and vec3 two and three.
+    Num(Vec<NodeId>),
+    Record(Rc<[(String, Value)]>),
+}
+
+impl Value {
+    pub(crate) fn scalar(id: NodeId) -> Value {
+        Value::Num(vec![id])
+    }
+
+    pub(crate) fn comps(&self) -> &[NodeId] {
+        match self {
+            Value::Num(c) => c,
+            Value::Record(_) => &[],
+        }
+    }
+
+    /// Component `k`, broadcasting scalars.
+    pub(crate) fn comp(&self, k: usize) -> NodeId {
+        let c = self.comps();
+        if c.len() == 1 {
+            c[0]
+        } else {
+            c[k]
+        }
+    }
+
+    pub(crate) fn map_nodes(&self, f: &mut impl FnMut(NodeId) -> NodeId) -> Value {
+        match self {
+            Value::Num(c) => Value::Num(c.iter().map(|&id| f(id)).collect()),
+            Value::Record(fields) => Value::Record(fields.iter().map(|(n, v)| (n.clone(), v.map_nodes(f))).collect()),
+        }
+    }
+
+    pub(crate) fn for_each_node(&self, f: &mut impl FnMut(NodeId)) {
+        match self {
+            Value::Num(c) => c.iter().for_each(|&id| f(id)),
+            Value::Record(fields) => fields.iter().for_each(|(_, v)| v.for_each_node(f)),
+        }
+    }
+}
+
+type Lowered<T> = Result<T, Diagnostic>;
+
+/// The names a graph body binds, with node values computed on first use.
+struct GraphEnv {
+    params: HashMap<String, Value>,
+    nodes: HashMap<String, ast::Expr>,
+    consts: HashMap<String, ast::Expr>,
+    values: RefCell<HashMap<String, Value>>,
+}
+
+pub(crate) struct Lowerer<'a> {
+    set: &'a ModuleSet,
+    b: Builder,
+    module: ModuleId,
+    file: FileId,
+    locals: Vec<(String, Value)>,
+    graph: Option<Rc<GraphEnv>>,
+    consts: HashMap<ItemRef, Value>,
+}
+
+impl<'a> Lowerer<'a> {
+    fn new(set: &'a ModuleSet, module: ModuleId) -> Self {
+        Lowerer {
+            set,
+            b: Builder::new(),
+            module,
+            file: set.module(module).file,
+            locals: Vec::new(),
+            graph: None,
+            consts: HashMap::new(),
+        }
+    }
+
+    fn error(&self, span: Span, message: impl Into<String>) -> Diagnostic {
+        Diagnostic::error(self.file, span, message)
+    }
+
+    fn check_size(&self, span: Span) -> Lowered<()> {
+        if self.b.len() > MAX_IR_NODES {
+            return Err(self.error(span, format!("the graph grows past {MAX_IR_NODES} IR nodes here"))
+                .with_hint("reduce loop counts, octaves or blur taps"));
+        }
+        Ok(())
+    }
+}
+
+/// Evaluates a checked, constant expression of `module` to its components (`None` if it is
+/// not constant after all).
+pub fn const_value(set: &ModuleSet, module: ModuleId, e: &ast::Expr) -> Option<Vec<f32>> {
+    let mut l = Lowerer::new(set, module);
+    let v = l.lower_expr(e).ok()?;
+    v.comps().iter().map(|&id| l.b.const_of(id)).collect()
+}
+
+/// Lowers one checked graph to its forward program.
+pub fn lower_graph(set: &ModuleSet, module: ModuleId, g: &ast::GraphDef) -> Result<CompiledGraph, Diagnostic> {
+    let started = Instant::now();
+    let mut l = Lowerer::new(set, module);
+    let mut params = Vec::new();
+    let mut env = GraphEnv {
+        params: HashMap::new(),
+        nodes: HashMap::new(),
+        consts: HashMap::new(),
+        values: RefCell::new(HashMap::new()),
+    };
+    let (mut category, mut description) = (String::from("uncategorised"), String::new());
+    let mut slot = 0u32;
+    for member in &g.members {
+        match member {
+            GraphMember::Category(c, _) => category = c.name.clone(),
+            GraphMember::Description(d, _) => description = d.clone(),
+            GraphMember::Param(p) => {
+                let default = const_value(set, module, &p.default)
+                    .ok_or_else(|| l.error(p.default.span, "internal: parameter default is not constant"))?;
+                let range = p.range.as_ref().map(|(lo, hi, _)| {
+                    (
+                        const_value(set, module, lo).and_then(|v| v.first().copied()).unwrap_or(0.0),
+                        const_value(set, module, hi).and_then(|v| v.first().copied()).unwrap_or(1.0),
+                    )
+                });
+                let kind = match (default.len(), range) {
+                    (3, _) => ParamKind::Color,
+                    (_, Some((min, max))) if p.is_int => ParamKind::Discrete { min: min as i64, max: max as i64 },
+                    (_, Some((min, max))) => ParamKind::Continuous { min, max },
+                    (_, None) => ParamKind::Continuous { min: 0.0, max: 1.0 },
+                };
+                let width = default.len() as u32;
+                let value = Value::Num((0..width).map(|k| l.b.param(slot + k)).collect());
+                env.params.insert(p.name.name.clone(), value);
+                params.push(ParamInfo { name: p.name.name.clone(), doc: p.doc.clone(), kind, default, slot: slot as usize });
+                slot += width;
+            }
+            GraphMember::Node { name, value, .. } => {
+                env.nodes.insert(name.name.clone(), value.clone());
+            }
+            GraphMember::Const(c) => {
+                env.consts.insert(c.name.name.clone(), c.value.clone());
+            }
+            GraphMember::Output { .. } => {}
+        }
+    }
+    l.b.reserve_params(slot as usize);
+    l.graph = Some(Rc::new(env));
+    let mut outs: HashMap<&str, Value> = HashMap::new();
+    for member in &g.members {
+        if let GraphMember::Output { name, value, .. } = member {
+            let v = l.lower_expr(value)?;
+            outs.insert(
+                crate::check::OUTPUTS.iter().map(|(n, _, _)| *n).find(|n| *n == name.name).unwrap_or("albedo"),
+                v,
+            );
+        }
+    }
+    let zero = l.b.constant(0.0);
+    let height = outs.get("height").cloned().unwrap_or(Value::scalar(zero));
+    let normal = match outs.get("normal") {
+        Some(n) => builtins::normalize(&mut l.b, n),
+        None => {
+            let du = builtins::partial(&mut l.b, &height, Wrt::U).comp(0);
+            let dv = builtins::partial(&mut l.b, &height, Wrt::V).comp(0);
+            let one = l.b.constant(1.0);
+            let nx = l.b.neg(du);
+            let ny = l.b.neg(dv);
+            builtins::normalize(&mut l.b, &Value::Num(vec![nx, ny, one]))
+        }
+    };
+    let albedo = outs.get("albedo").cloned().unwrap_or(Value::Num(vec![zero; 3]));
+    let roughness = outs.get("roughness").cloned().unwrap_or(Value::scalar(zero));
+    let metallic = outs.get("metallic").cloned().unwrap_or(Value::scalar(zero));
+    let nodes = [
+        albedo.comp(0),
+        albedo.comp(1),
+        albedo.comp(2),
+        roughness.comp(0),
+        normal.comp(0),
+        normal.comp(1),
+        normal.comp(2),
+        height.comp(0),
+        metallic.comp(0),
+    ];
+    l.check_size(g.span)?;
+    let requested = l.b.requested();
+    let outputs = CHANNELS.iter().zip(nodes).map(|(name, node)| Output { name: name.to_string(), node }).collect();
+    let mut forward = l.b.finish(outputs);
+    let nodes_before_dce = forward.nodes.len();
+    forward.eliminate_dead_code();
+    debug_assert_eq!(forward.validate(), Ok(()));
+    let module_ref = set.module(module);
+    Ok(CompiledGraph {
+        info: GraphInfo {
+            name: g.name.name.clone(),
+            category,
+            description,
+            doc: g.doc.clone(),
+            file: module_ref.path.clone(),
+            params,
+            has_height: outs.contains_key("height"),
+        },
+        stats: CompileStats {
+            requested_nodes: requested,
+            nodes_before_dce,
+            forward_ops: forward.op_count(),
+            lower_time: started.elapsed(),
+        },
+        forward,
+    })
+}
