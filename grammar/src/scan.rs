@@ -37,6 +37,9 @@ struct Scanner<'s> {
     open: Vec<(u8, usize)>,
     /// Nothing but whitespace or comments since the last newline.
     at_line_start: bool,
+    /// A bracket error was reported and the brackets have not balanced since: more
+    /// complaints would most likely be consequences of the first.
+    brackets_confused: bool,
     out: Scan,
 }
 
@@ -46,7 +49,12 @@ pub(crate) fn scan(src: &str) -> Scan {
         pos: 0,
         open: Vec::new(),
         at_line_start: true,
-        out: Scan { errors: Vec::new(), doc_lines: Vec::new(), item_starts: Vec::new() },
+        brackets_confused: false,
+        out: Scan {
+            errors: Vec::new(),
+            doc_lines: Vec::new(),
+            item_starts: Vec::new(),
+        },
     };
     scanner.run();
     scanner.out
@@ -98,7 +106,9 @@ impl Scanner<'_> {
                     self.pos += c.len_utf8();
                 }
                 _ => {
-                    if self.at_line_start && self.open.is_empty() && starts_item_keyword(self.rest())
+                    if self.at_line_start
+                        && self.open.is_empty()
+                        && starts_item_keyword(self.rest())
                     {
                         self.out.item_starts.push(start);
                     }
@@ -127,7 +137,10 @@ impl Scanner<'_> {
     }
 
     fn control_error(&mut self, at: usize, c: char) {
-        let message = format!("control character U+{:04X} is not allowed in source text", c as u32);
+        let message = format!(
+            "control character U+{:04X} is not allowed in source text",
+            c as u32
+        );
         self.error(message, Span::new(at, at + c.len_utf8()), None);
     }
 
@@ -150,7 +163,10 @@ impl Scanner<'_> {
         if self.at_line_start && text.starts_with("///") && !text.starts_with("////") {
             // Trailing blanks are trimmed so that the lowering can find the line by
             // its end, walking back over blank space from an item.
-            self.out.doc_lines.push(Span::new(start, start + text.trim_end_matches([' ', '\t', '\r']).len()));
+            self.out.doc_lines.push(Span::new(
+                start,
+                start + text.trim_end_matches([' ', '\t', '\r']).len(),
+            ));
         }
         self.check_controls(start, end);
         self.pos = end;
@@ -218,6 +234,20 @@ impl Scanner<'_> {
         match self.open.last() {
             Some(&(open, _)) if matching_close(open) == close => {
                 self.open.pop();
+                if self.open.is_empty() {
+                    self.brackets_confused = false;
+                }
+            }
+            _ if self.brackets_confused => {
+                // Keep the stack roughly in step, without reporting.
+                if let Some(depth) = self
+                    .open
+                    .iter()
+                    .rposition(|&(o, _)| matching_close(o) == close)
+                {
+                    self.open.truncate(depth);
+                }
+                self.brackets_confused = !self.open.is_empty();
             }
             Some(&(open, open_at)) => {
                 let (line, col) = line_col(self.src, open_at);
@@ -226,31 +256,50 @@ impl Scanner<'_> {
                     open as char,
                     matching_close(open) as char
                 );
-                self.error(format!("mismatched `{name}`"), Span::new(at, at + 1), Some(&hint));
+                self.error(
+                    format!("mismatched `{name}`"),
+                    Span::new(at, at + 1),
+                    Some(&hint),
+                );
                 // If an outer bracket matches, the inner ones were left unclosed: resume
-                // there. Otherwise take it for a typo (`g(1.0]`) that closes the
-                // innermost bracket, so that one slip gives one error.
-                match self.open.iter().rposition(|&(o, _)| matching_close(o) == close) {
-                    Some(depth) => self.open.truncate(depth),
-                    None => {
-                        self.open.pop();
-                    }
+                // there. Otherwise the closer is stray.
+                if let Some(depth) = self
+                    .open
+                    .iter()
+                    .rposition(|&(o, _)| matching_close(o) == close)
+                {
+                    self.open.truncate(depth);
                 }
+                self.brackets_confused = !self.open.is_empty();
             }
             None => {
-                let hint = format!("there is no open `{}` for it to close", matching_open(close) as char);
-                self.error(format!("unmatched `{name}`"), Span::new(at, at + 1), Some(&hint));
+                let hint = format!(
+                    "there is no open `{}` for it to close",
+                    matching_open(close) as char
+                );
+                self.error(
+                    format!("unmatched `{name}`"),
+                    Span::new(at, at + 1),
+                    Some(&hint),
+                );
             }
         }
     }
 
     fn report_unclosed(&mut self) {
+        if self.brackets_confused {
+            return;
+        }
         for (open, at) in std::mem::take(&mut self.open) {
             let hint = format!(
                 "no matching `{}` before the end of the file",
                 matching_close(open) as char
             );
-            self.error(format!("unclosed `{}`", open as char), Span::new(at, at + 1), Some(&hint));
+            self.error(
+                format!("unclosed `{}`", open as char),
+                Span::new(at, at + 1),
+                Some(&hint),
+            );
         }
     }
 }

@@ -11,8 +11,23 @@ pub(crate) struct PsgParser;
 
 /// Words that can never be names (kept in sync with `keyword` in psg.pest).
 pub(crate) const KEYWORDS: [&str; 17] = [
-    "import", "const", "fn", "graph", "let", "var", "for", "in", "if", "else", "true", "false",
-    "param", "node", "output", "category", "description",
+    "import",
+    "const",
+    "fn",
+    "graph",
+    "let",
+    "var",
+    "for",
+    "in",
+    "if",
+    "else",
+    "true",
+    "false",
+    "param",
+    "node",
+    "output",
+    "category",
+    "description",
 ];
 
 /// How an expected token is shown, and in which group of the "expected" list.
@@ -48,7 +63,7 @@ fn describe(rule: Rule) -> (Group, &'static str) {
         Rule::kw_graph | Rule::graph_def => (Token, "`graph`"),
         Rule::kw_let => (Token, "`let`"),
         Rule::kw_var => (Token, "`var`"),
-        Rule::let_stmt => (Token, "`let` or `var`"),
+        Rule::let_stmt => (Token, "`let`, `var`"),
         Rule::kw_for | Rule::for_stmt => (Token, "`for`"),
         Rule::kw_in => (Token, "`in`"),
         Rule::kw_if | Rule::if_expr => (Token, "`if`"),
@@ -86,8 +101,14 @@ fn describe(rule: Rule) -> (Group, &'static str) {
 
 /// Labels that, when all present, are summarised as one entry.
 const ITEM_STARTS: [&str; 4] = ["`import`", "`const`", "`fn`", "`graph`"];
-const MEMBER_STARTS: [&str; 6] =
-    ["`category`", "`description`", "`param`", "`node` or `let`", "`const`", "`output`"];
+const MEMBER_STARTS: [&str; 6] = [
+    "`category`",
+    "`description`",
+    "`param`",
+    "`node` or `let`",
+    "`const`",
+    "`output`",
+];
 
 /// Turns a pest failure on `src` into our error; spans are shifted by `base`.
 pub(crate) fn translate(error: pest::error::Error<Rule>, src: &str, base: usize) -> ParseError {
@@ -114,12 +135,24 @@ fn expected_found(positives: &[Rule], src: &str, at: usize, base: usize) -> Pars
             labels.push(label);
         }
     }
-    summarise(&mut labels, &MEMBER_STARTS, "a graph member (`param`, `node`, `output`, …)");
-    summarise(&mut labels, &ITEM_STARTS, "`import`, `const`, `fn` or `graph`");
+    summarise(
+        &mut labels,
+        &MEMBER_STARTS,
+        "a graph member (`param`, `node`, `output`, …)",
+    );
+    summarise(
+        &mut labels,
+        &ITEM_STARTS,
+        "`import`, `const`, `fn` or `graph`",
+    );
     // An operator is always possible after a complete expression; listing the
     // postfix `.` and `(` as well would only add noise.
     if labels.iter().any(|&(group, _)| group == Group::Operator) {
         labels.retain(|&(_, text)| text != "`.`" && text != "`(`");
+    }
+    // A name is an expression (and `true` or `false` too).
+    if labels.iter().any(|&(_, text)| text == "an expression") {
+        labels.retain(|&(_, text)| text != "a name" && text != "`true` or `false`");
     }
     labels.sort_by_key(|&(group, _)| group); // stable: keeps pest's order within a group
 
@@ -136,8 +169,14 @@ fn expected_found(positives: &[Rule], src: &str, at: usize, base: usize) -> Pars
 }
 
 fn summarise(labels: &mut Vec<(Group, &str)>, members: &[&str], summary: &'static str) {
-    if members.iter().all(|m| labels.iter().any(|&(_, text)| text == *m)) {
-        let first = labels.iter().position(|&(_, text)| members.contains(&text)).unwrap_or(0);
+    if members
+        .iter()
+        .all(|m| labels.iter().any(|&(_, text)| text == *m))
+    {
+        let first = labels
+            .iter()
+            .position(|&(_, text)| members.contains(&text))
+            .unwrap_or(0);
         labels.retain(|&(_, text)| !members.contains(&text));
         labels.insert(first.min(labels.len()), (Group::Token, summary));
     }
@@ -147,9 +186,14 @@ fn hint_for(expected: &[&str], src: &str, found: Span) -> Option<String> {
     let found_text = &src[found.start..found.end];
     let is_word = found_text.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_');
     if KEYWORDS.contains(&found_text) && expected.contains(&"a name") {
-        return Some(format!("`{found_text}` is a keyword and cannot be used as a name"));
+        return Some(format!(
+            "`{found_text}` is a keyword and cannot be used as a name"
+        ));
     }
-    if is_word && !KEYWORDS.contains(&found_text) && expected.iter().any(|e| e.starts_with("a graph member")) {
+    if is_word
+        && !KEYWORDS.contains(&found_text)
+        && expected.iter().any(|e| e.starts_with("a graph member"))
+    {
         return Some(format!(
             "graph members start with a keyword: `output {found_text} = …`, `node {found_text} = …`, `param {found_text} = …`"
         ));
@@ -162,6 +206,15 @@ fn hint_for(expected: &[&str], src: &str, found: Span) -> Option<String> {
             return Some(format!("is a `;` missing at the end of line {line}?"));
         }
     }
+    if found_text == "}"
+        && expected.contains(&"`let`, `var`")
+        && expected.contains(&"an expression")
+    {
+        return Some("a block ends with its value: an expression without `;`".to_owned());
+    }
+    if found_text == ";" && expected.first() == Some(&"`}`") {
+        return Some("the last expression of a block is its value and takes no `;`".to_owned());
+    }
     if found_text == "}" && expected.contains(&"`=`, `+=`, `-=`, `*=` or `/=`") {
         return Some("a `for` body has no value: it holds only statements (`let`, `var`, assignments, `for`)".to_owned());
     }
@@ -169,7 +222,9 @@ fn hint_for(expected: &[&str], src: &str, found: Span) -> Option<String> {
         return Some("`if` is an expression: it needs an `else` branch".to_owned());
     }
     if expected.first() == Some(&"`->`") {
-        return Some("a function declares its result type: `fn f(x: float) -> float { … }`".to_owned());
+        return Some(
+            "a function declares its result type: `fn f(x: float) -> float { … }`".to_owned(),
+        );
     }
     None
 }
@@ -186,8 +241,9 @@ fn shift(span: Span, base: usize) -> Span {
     Span::new(span.start + base, span.end + base)
 }
 
-const MULTI_CHAR_PUNCTUATION: [&str; 12] =
-    ["->", "..", "==", "!=", "<=", ">=", "&&", "||", "+=", "-=", "*=", "/="];
+const MULTI_CHAR_PUNCTUATION: [&str; 12] = [
+    "->", "..", "==", "!=", "<=", ">=", "&&", "||", "+=", "-=", "*=", "/=",
+];
 
 /// The token starting at `at` (a char boundary): its span and how to show it.
 pub(crate) fn token_at(src: &str, at: usize) -> (Span, String) {
@@ -202,7 +258,9 @@ pub(crate) fn token_at(src: &str, at: usize) -> (Span, String) {
             .unwrap_or(rest.len());
         if first.is_ascii_digit() && rest[len..].starts_with('.') {
             let frac = &rest[len + 1..];
-            let digits = frac.find(|c: char| !c.is_ascii_alphanumeric()).unwrap_or(frac.len());
+            let digits = frac
+                .find(|c: char| !c.is_ascii_alphanumeric())
+                .unwrap_or(frac.len());
             if digits > 0 {
                 len += 1 + digits;
             }

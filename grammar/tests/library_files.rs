@@ -8,7 +8,9 @@ mod support;
 use std::path::{Path, PathBuf};
 
 fn psg_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
     for entry in entries.flatten() {
         let path = entry.path();
         if path.is_dir() {
@@ -29,8 +31,16 @@ fn every_library_file_parses() {
     for file in &files {
         let src = std::fs::read_to_string(file).unwrap();
         if let Err(errors) = psc_grammar::parse(&src) {
-            failures += &format!("{}:\n{}", file.display(), support::render_errors(&src, &errors));
+            failures += &format!(
+                "{}:\n{}",
+                file.display(),
+                support::render_errors(&src, &errors)
+            );
         }
     }
-    assert!(failures.is_empty(), "{} files, failures:\n{failures}", files.len());
+    assert!(
+        failures.is_empty(),
+        "{} files, failures:\n{failures}",
+        files.len()
+    );
 }
