@@ -190,6 +190,9 @@ fn hint_for(expected: &[&str], src: &str, found: Span) -> Option<String> {
             "`{found_text}` is a keyword and cannot be used as a name"
         ));
     }
+    if found_text == "int" && expected.contains(&"`in`") {
+        return Some("`int` comes after the range: `param n = 4 in [1, 8] int`".to_owned());
+    }
     if is_word
         && !KEYWORDS.contains(&found_text)
         && expected.iter().any(|e| e.starts_with("a graph member"))

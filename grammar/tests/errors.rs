@@ -64,6 +64,11 @@ fn huge_literals() {
 }
 
 #[test]
+fn int_param_without_range() {
+    insta::assert_snapshot!(errors_of("graph g {\n    param n = 4 int\n}\n"));
+}
+
+#[test]
 fn keyword_as_name() {
     insta::assert_snapshot!(errors_of("fn let(x: float) -> float { x }\n"));
 }
