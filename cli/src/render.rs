@@ -83,6 +83,9 @@ pub struct Args {
     /// Print throughput: primary rays/s, path rays/s and the render time.
     #[arg(long)]
     bench: bool,
+    /// Validation only: Lambertian shading (the specular lobe off), to compare with Mitsuba's `diffuse`.
+    #[arg(long)]
+    diffuse_only: bool,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -180,6 +183,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         threads: args.threads,
         progress: !args.quiet && !args.bench,
         per_light: args.per_light,
+        diffuse_only: args.diffuse_only,
         ..Default::default()
     };
     if args.bench {

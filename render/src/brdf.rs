@@ -92,6 +92,8 @@ pub struct BrdfSample {
 pub struct Karis {
     pub albedo: Vec3,
     pub roughness: f32,
+    /// 1 normally; 0 turns the specular lobe off (validation against purely diffuse renders).
+    pub specular_weight: f32,
 }
 
 #[inline]
@@ -102,12 +104,18 @@ fn luminance(c: Vec3) -> f32 {
 impl Karis {
     pub fn new(albedo: Vec3, roughness: f32) -> Self {
         let roughness = if roughness.is_finite() { roughness.clamp(MIN_ROUGHNESS, 1.0) } else { 1.0 };
-        Karis { albedo: albedo.max(Vec3::ZERO), roughness }
+        Karis { albedo: albedo.max(Vec3::ZERO), roughness, specular_weight: 1.0 }
+    }
+
+    /// Lambertian only (validation): the specular lobe switched off.
+    pub fn diffuse_only(mut self) -> Self {
+        self.specular_weight = 0.0;
+        self
     }
 
     /// The specular term `D·F·G / (4 n·v n·l)` alone (scalar: F0 is grey).
     pub fn specular(&self, wo: Vec3, wi: Vec3) -> f32 {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
+        if wo.z <= 0.0 || wi.z <= 0.0 || self.specular_weight == 0.0 {
             return 0.0;
         }
         let h = (wo + wi).normalize();
@@ -115,7 +123,7 @@ impl Karis {
         let d = ggx_d(h.z, self.roughness);
         let f = fresnel(v_h);
         let g = g1(wo.z, self.roughness) * g1(wi.z, self.roughness);
-        d * f * g / (4.0 * wo.z * wi.z)
+        self.specular_weight * d * f * g / (4.0 * wo.z * wi.z)
     }
 
     /// `f(wo, wi)` (without the cosine).
@@ -129,6 +137,9 @@ impl Karis {
     /// Probability of picking the specular lobe when sampling for `wo`.
     #[inline]
     fn specular_probability(&self, wo: Vec3) -> f32 {
+        if self.specular_weight == 0.0 {
+            return 0.0;
+        }
         let s = fresnel(wo.z.max(0.0));
         let d = luminance(self.albedo);
         (s / (s + d)).clamp(0.1, 0.9)
@@ -140,9 +151,13 @@ impl Karis {
             return 0.0;
         }
         let ps = self.specular_probability(wo);
+        let diffuse = wi.z / PI;
+        if ps == 0.0 {
+            return diffuse;
+        }
         let h = (wo + wi).normalize();
         let spec = ggx_d(h.z, self.roughness) * h.z / (4.0 * wo.dot(h).abs().max(1e-8));
-        ps * spec + (1.0 - ps) * wi.z / PI
+        ps * spec + (1.0 - ps) * diffuse
     }
 
     /// Sample `wi` for `wo`; `u_lobe` picks the lobe, `u` the direction. `None` when the sampled

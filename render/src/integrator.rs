@@ -42,11 +42,29 @@ pub struct RenderOptions {
     pub progress: bool,
     /// Also return one image per light slot at unit radiance.
     pub per_light: bool,
+    /// Validation only: switch the specular lobe off (pure Lambertian).
+    pub diffuse_only: bool,
+}
+
+/// What a path needs to know besides its start.
+#[derive(Clone, Copy, Debug)]
+pub struct PathConfig {
+    pub max_depth: u32,
+    pub rr_depth: u32,
+    /// Select lights for NEE by area (unit radiance) instead of by power.
+    pub per_light: bool,
+    pub diffuse_only: bool,
+}
+
+impl RenderOptions {
+    pub fn path_config(&self) -> PathConfig {
+        PathConfig { max_depth: self.max_depth, rr_depth: self.rr_depth, per_light: self.per_light, diffuse_only: self.diffuse_only }
+    }
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { width: 320, height: 240, spp: 64, seed: 0, max_depth: 6, rr_depth: 5, threads: None, progress: false, per_light: false }
+        RenderOptions { width: 320, height: 240, spp: 64, seed: 0, max_depth: 6, rr_depth: 5, threads: None, progress: false, per_light: false, diffuse_only: false }
     }
 }
 
@@ -155,8 +173,8 @@ impl Renderer {
     /// Radiance arriving at `o` from direction `-d` (d unit, leaving `o`), accumulated per slot
     /// into `st.out` at unit emission. `prev_pdf` is the solid-angle pdf with which `d` was
     /// sampled (0 = not sampled by a BRDF: camera rays, light-grid rays; no MIS on emitter hits).
-    pub fn li(&self, mut o: Vec3, mut d: Vec3, max_depth: u32, rr_depth: u32, per_light: bool, st: &mut PathState) {
-        let sel = self.selection(per_light);
+    pub fn li(&self, mut o: Vec3, mut d: Vec3, cfg: &PathConfig, st: &mut PathState) {
+        let sel = self.selection(cfg.per_light);
         let n_lights = self.lights.len();
         let mut beta = Vec3::ONE;
         let mut prev_pdf = 0.0f32;
@@ -187,14 +205,17 @@ impl Renderer {
                 }
                 Traced::Surface(h) => h,
             };
-            if depth + 1 >= max_depth {
+            if depth + 1 >= cfg.max_depth {
                 return;
             }
             let wo = -d;
             let binding = &self.materials[hit.part as usize];
             let s = binding.eval(hit.uv);
             let sf = self.geometry.shading_frame(&hit, wo, s.normal);
-            let brdf = Karis::new(Vec3::from(s.albedo), s.roughness);
+            let mut brdf = Karis::new(Vec3::from(s.albedo), s.roughness);
+            if cfg.diffuse_only {
+                brdf = brdf.diffuse_only();
+            }
             let wo_l = sf.frame.to_local(wo);
             if wo_l.z <= 0.0 {
                 return;
@@ -255,7 +276,7 @@ impl Renderer {
             o = origin;
             d = wi;
             depth += 1;
-            if depth >= rr_depth {
+            if depth >= cfg.rr_depth {
                 let q = beta.max_element().min(0.95);
                 if !(st.rng.next_f32() < q) {
                     return;
@@ -279,6 +300,7 @@ impl Renderer {
         let rays = AtomicU64::new(0);
         let bar = progress_bar(opts.progress, h as u64, "render");
         let mut slots = vec![Vec3::ZERO; w * h * ns];
+        let cfg = opts.path_config();
         let body = |slots: &mut Vec<Vec3>| {
             slots.par_chunks_mut(w * ns).enumerate().for_each(|(y, row)| {
                 let mut acc = vec![Vec3::ZERO; ns];
@@ -290,7 +312,7 @@ impl Renderer {
                         let mut st = PathState { rng: Rng::new(opts.seed, pixel, s as u64), rays: 0, out: &mut acc };
                         let j = st.rng.next_2d();
                         let d = cam.direction(x as f32 + j[0], y as f32 + j[1]);
-                        self.li(cam.position, d, opts.max_depth, opts.rr_depth, opts.per_light, &mut st);
+                        self.li(cam.position, d, &cfg, &mut st);
                         row_rays += st.rays;
                     }
                     let inv = 1.0 / opts.spp as f32;

@@ -26,7 +26,7 @@ use serde_json::json;
 use crate::camera::Camera;
 use crate::geometry::Traced;
 use crate::image_io;
-use crate::integrator::{progress_bar, run_in_pool, PathState, Renderer};
+use crate::integrator::{progress_bar, run_in_pool, PathConfig, PathState, Renderer};
 use crate::rng::Rng;
 use crate::RenderError;
 
@@ -109,6 +109,7 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
     let ns = r.n_slots();
     let n_parts = r.part_names.len() as u32;
     let bar = progress_bar(opts.progress, (gw * gh) as u64, "light grid");
+    let cfg = PathConfig { max_depth: opts.max_depth.saturating_sub(1), rr_depth: opts.rr_depth, per_light: opts.per_light, diffuse_only: false };
     let cells: Vec<Cell> = run_in_pool(opts.threads, || {
         (0..gw * gh)
             .into_par_iter()
@@ -144,7 +145,7 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
                             let u = st.rng.next_2d();
                             let dir = frame.to_world(bin_direction(i, j, u));
                             if dir.dot(sf.ng) > 0.0 {
-                                r.li(origin, dir, opts.max_depth.saturating_sub(1), opts.rr_depth, opts.per_light, &mut st);
+                                r.li(origin, dir, &cfg, &mut st);
                             }
                         }
                         for k in 0..ns {

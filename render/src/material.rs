@@ -82,26 +82,26 @@ impl Texture {
     }
 
     /// Bilinear lookup at OBJ-convention (u, v), repeat wrap.
+    #[inline]
     pub fn sample(&self, uv: [f32; 2]) -> [f32; 3] {
         let (w, h) = (self.width as f32, self.height as f32);
         let u = uv[0] - uv[0].floor();
         let v = uv[1] - uv[1].floor();
+        // x in [-0.5, w - 0.5), y in [-0.5, h - 0.5]
         let x = u * w - 0.5;
         let y = (1.0 - v) * h - 0.5;
-        if !x.is_finite() || !y.is_finite() {
+        if !(x.is_finite() && y.is_finite()) {
             return self.data[0];
         }
-        let x0f = x.floor();
-        let y0f = y.floor();
-        let fx = x - x0f;
-        let fy = y - y0f;
-        let wrap = |i: f32, n: usize| -> usize { (i as i64).rem_euclid(n as i64) as usize };
-        let x0 = wrap(x0f, self.width);
-        let x1 = wrap(x0f + 1.0, self.width);
-        let y0 = wrap(y0f, self.height);
-        let y1 = wrap(y0f + 1.0, self.height);
-        let t = |xx: usize, yy: usize| self.data[yy * self.width + xx];
-        let (a, b, c, d) = (t(x0, y0), t(x1, y0), t(x0, y1), t(x1, y1));
+        let (x0f, y0f) = ((x + 1.0) as i32 - 1, (y + 1.0) as i32 - 1); // floor for x >= -1
+        let (fx, fy) = (x - x0f as f32, y - y0f as f32);
+        let wrap = |i: i32, n: usize| -> usize {
+            if i < 0 { n - 1 } else if i as usize >= n { i as usize - n } else { i as usize }
+        };
+        let (x0, x1) = (wrap(x0f, self.width), wrap(x0f + 1, self.width));
+        let (y0, y1) = (wrap(y0f, self.height), wrap(y0f + 1, self.height));
+        let (r0, r1) = (y0 * self.width, y1 * self.width);
+        let (a, b, c, d) = (self.data[r0 + x0], self.data[r0 + x1], self.data[r1 + x0], self.data[r1 + x1]);
         let mut out = [0.0; 3];
         for k in 0..3 {
             let top = a[k] + (b[k] - a[k]) * fx;

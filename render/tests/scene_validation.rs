@@ -1,0 +1,190 @@
+//! Broken scenes give clear errors or warnings, never panics.
+
+mod common;
+
+use common::*;
+use psc_render::{RenderError, Scene};
+
+fn load_err(dir: &std::path::Path) -> RenderError {
+    match Scene::load(dir) {
+        Ok(_) => panic!("scene in {} should not load", dir.display()),
+        Err(e) => e,
+    }
+}
+
+#[test]
+fn valid_scene_loads_with_parts_and_no_warnings() {
+    let dir = temp_dir("valid");
+    write_scene(&dir);
+    let s = Scene::load(&dir).unwrap();
+    assert_eq!(s.mesh.part_names, ["floor", "ceiling", "walls", "crate"]);
+    assert_eq!(s.mesh.triangles.len(), 14);
+    assert_eq!(s.views[0].width, W);
+    assert_eq!(s.lights.len(), 1);
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+}
+
+#[test]
+fn missing_mesh_is_an_error_naming_the_file() {
+    let dir = temp_dir("nomesh");
+    write_scene(&dir);
+    std::fs::remove_file(dir.join("room.obj")).unwrap();
+    let msg = load_err(&dir).to_string();
+    assert!(msg.contains("room.obj") && msg.contains("not found"), "{msg}");
+}
+
+#[test]
+fn missing_light_mesh_and_photo_are_errors() {
+    let dir = temp_dir("nolight");
+    write_scene(&dir);
+    std::fs::remove_file(dir.join("lights/lamp.obj")).unwrap();
+    let msg = load_err(&dir).to_string();
+    assert!(msg.contains("lamp.obj") && msg.contains("light 'lamp'"), "{msg}");
+    let dir = temp_dir("nophoto");
+    write_scene(&dir);
+    std::fs::remove_file(dir.join("views/view0.png")).unwrap();
+    let msg = load_err(&dir).to_string();
+    assert!(msg.contains("view0.png"), "{msg}");
+}
+
+#[test]
+fn malformed_json_reports_line_and_column() {
+    let dir = temp_dir("badjson");
+    write_scene(&dir);
+    // Drop the comma after "units": the error is on line 4 (the "up" key), column 3.
+    let text = manifest(GOOD_CAMERA, GOOD_LABELS).replace("\"meters\",", "\"meters\"");
+    std::fs::write(dir.join("scene.json"), text).unwrap();
+    let e = load_err(&dir);
+    match &e {
+        RenderError::Json { line, column, .. } => assert_eq!((*line, *column), (4, 3), "{e}"),
+        other => panic!("expected a JSON error, got {other}"),
+    }
+    let msg = e.to_string();
+    assert!(msg.contains("scene.json:4:3:"), "{msg}");
+}
+
+#[test]
+fn schema_errors_also_have_a_location() {
+    let dir = temp_dir("schema");
+    write_scene(&dir);
+    let text = manifest(GOOD_CAMERA, GOOD_LABELS).replace("\"fov_y_deg\": 60.0", "\"fov_y_deg\": \"wide\"");
+    std::fs::write(dir.join("scene.json"), text).unwrap();
+    let msg = load_err(&dir).to_string();
+    assert!(msg.contains("scene.json:") && msg.contains("invalid type"), "{msg}");
+}
+
+#[test]
+fn obj_without_uvs_warns_and_generates_them() {
+    let dir = temp_dir("nouv");
+    write_scene(&dir);
+    std::fs::write(dir.join("room.obj"), room_obj(false)).unwrap();
+    let s = Scene::load(&dir).unwrap();
+    assert!(s.warnings.iter().any(|w| w.contains("no texture coordinates")), "{:?}", s.warnings);
+    assert_eq!(s.mesh.generated_uv_parts.len(), 4);
+    // Floor uvs are the (x, z) coordinates: they vary and span the 4 m floor.
+    let floor = s.mesh.part_index("floor").unwrap() as u32;
+    let uvs: Vec<[f32; 2]> = s
+        .mesh
+        .triangles
+        .iter()
+        .zip(&s.mesh.tri_part)
+        .filter(|(_, &p)| p == floor)
+        .flat_map(|(t, _)| t.iter().map(|&i| s.mesh.uvs[i as usize]))
+        .collect();
+    let max_u = uvs.iter().map(|u| u[0]).fold(f32::MIN, f32::max);
+    let max_v = uvs.iter().map(|u| u[1]).fold(f32::MIN, f32::max);
+    assert_eq!((max_u, max_v), (4.0, 4.0));
+}
+
+#[test]
+fn label_image_of_the_wrong_size_is_an_error() {
+    let dir = temp_dir("labelsize");
+    write_scene(&dir);
+    write_labels(&dir, W + 1, H);
+    let msg = load_err(&dir).to_string();
+    assert!(msg.contains("41x30") && msg.contains("40x30"), "{msg}");
+}
+
+#[test]
+fn colour_label_image_is_an_error() {
+    let dir = temp_dir("labelrgb");
+    write_scene(&dir);
+    psc_render::image_io::write_rgb(&dir.join("views/view0_parts.png"), W, H, &vec![[0.2; 3]; W * H]).unwrap();
+    let msg = load_err(&dir).to_string();
+    assert!(msg.contains("grayscale"), "{msg}");
+}
+
+#[test]
+fn labels_naming_unknown_parts_warn() {
+    let dir = temp_dir("unknownpart");
+    write_scene(&dir);
+    let labels = r#"{ "1": "floor", "2": "sofa" }"#;
+    std::fs::write(dir.join("scene.json"), manifest(GOOD_CAMERA, labels)).unwrap();
+    let s = Scene::load(&dir).unwrap();
+    assert!(s.warnings.iter().any(|w| w.contains("'sofa'") && w.contains("does not have")), "{:?}", s.warnings);
+    // A label value in the image without a name also warns.
+    let labels = r#"{ "1": "floor" }"#;
+    std::fs::write(dir.join("scene.json"), manifest(GOOD_CAMERA, labels)).unwrap();
+    let s = Scene::load(&dir).unwrap();
+    assert!(s.warnings.iter().any(|w| w.contains("[2]") && w.contains("no entry")), "{:?}", s.warnings);
+}
+
+#[test]
+fn non_integer_label_key_is_an_error() {
+    let dir = temp_dir("labelkey");
+    write_scene(&dir);
+    std::fs::write(dir.join("scene.json"), manifest(GOOD_CAMERA, r#"{ "one": "floor" }"#)).unwrap();
+    assert!(load_err(&dir).to_string().contains("'one'"));
+}
+
+#[test]
+fn degenerate_cameras_are_errors() {
+    let cases = [
+        (r#"{ "position": [2, 1, 2], "look_at": [2, 1, 2], "up": [0, 1, 0], "fov_y_deg": 60 }"#, "coincide"),
+        (r#"{ "position": [2, 1, 3], "look_at": [2, 1, 1], "up": [0, 1, 0], "fov_y_deg": 0 }"#, "fov_y_deg"),
+        (r#"{ "position": [2, 1, 3], "look_at": [2, 1, 1], "up": [0, 1, 0], "fov_y_deg": 200 }"#, "fov_y_deg"),
+        (r#"{ "position": [2, 2, 2], "look_at": [2, 0, 2], "up": [0, 1, 0], "fov_y_deg": 60 }"#, "parallel"),
+        (r#"{ "position": [2, 1, 3], "look_at": [2, 1, 1], "up": [0, 0, 0], "fov_y_deg": 60 }"#, "zero up"),
+    ];
+    for (camera, expect) in cases {
+        let dir = temp_dir("camera");
+        write_scene(&dir);
+        std::fs::write(dir.join("scene.json"), manifest(camera, GOOD_LABELS)).unwrap();
+        let e = load_err(&dir);
+        assert!(matches!(e, RenderError::Camera { .. }), "{e}");
+        let msg = e.to_string();
+        assert!(msg.contains("view 'view0'") && msg.contains(expect), "{msg}");
+    }
+}
+
+#[test]
+fn missing_mtl_keeps_part_names_with_a_warning() {
+    let dir = temp_dir("nomtl");
+    write_scene(&dir);
+    std::fs::remove_file(dir.join("room.mtl")).unwrap();
+    let s = Scene::load(&dir).unwrap();
+    assert_eq!(s.mesh.part_names, ["floor", "ceiling", "walls", "crate"]);
+    assert!(s.warnings.iter().any(|w| w.contains("room.mtl")), "{:?}", s.warnings);
+}
+
+#[test]
+fn no_lights_key_places_ceiling_lights() {
+    let dir = temp_dir("autolights");
+    write_scene(&dir);
+    let text = manifest(GOOD_CAMERA, GOOD_LABELS).replace(r#""lights": [ { "name": "lamp", "mesh": "lights/lamp.obj" } ]"#, r#""units2": 1"#);
+    // unknown keys are rejected: that is a schema error with a location
+    std::fs::write(dir.join("scene.json"), &text).unwrap();
+    assert!(matches!(load_err(&dir), RenderError::Json { .. }));
+    let text = text.replace(",\n  \"units2\": 1", "");
+    std::fs::write(dir.join("scene.json"), &text).unwrap();
+    let s = Scene::load(&dir).unwrap();
+    assert!(s.lights_generated);
+    assert!(!s.lights.is_empty());
+    // every generated emitter faces down, below the ceiling
+    for l in &s.lights {
+        for t in &l.triangles {
+            let n = (t[1] - t[0]).cross(t[2] - t[0]);
+            assert!(n.y < 0.0 && t[0].y < 2.5);
+        }
+    }
+}
