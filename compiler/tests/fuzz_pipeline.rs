@@ -467,3 +467,20 @@ fn the_oracle_catches_bad_spans_and_accepts_real_errors() {
     out.diagnostics[0].span = psc_grammar::ast::Span::new(5, 500);
     assert!(check_output(&out).is_err());
 }
+
+/// Inputs the fuzzer once failed on, kept as regression tests.
+#[test]
+fn regressions_found_by_fuzzing() {
+    let cases: &[&[u8]] = &[
+        // "this file defines no graph…" spanned the first byte of a three-byte BOM.
+        "\u{feff}".as_bytes(),
+        "\u{feff}import std.noise;\n".as_bytes(),
+        "\u{feff}// only a comment\n".as_bytes(),
+        // An invalid byte (see the known issue in `check_span`).
+        &[0x80],
+        &[b'g', 0xff, b'\n'],
+    ];
+    for bytes in cases {
+        check_input("wood", bytes).unwrap();
+    }
+}

@@ -121,7 +121,9 @@ impl<'a> Checker<'a> {
     fn check_module(&mut self) {
         let module = self.set.module(self.module);
         if module.ast.items.iter().all(|i| matches!(i, ast::Item::Import(_))) {
-            let span = Span::new(0, self.set.sources.text(self.file).len().min(1));
+            // The first character (not byte: a file may start with a BOM).
+            let first = self.set.sources.text(self.file).chars().next().map_or(0, char::len_utf8);
+            let span = Span::new(0, first);
             self.error(span, "this file defines no graph, function or constant")
                 .hint = Some("a material file needs `graph NAME { … }`; see docs/language.md".into());
         }
