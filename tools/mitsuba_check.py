@@ -65,7 +65,10 @@ class Karis(mi.BSDF):
 
     def __init__(self, props):
         mi.BSDF.__init__(self, props)
-        self.albedo = props["reflectance"]
+        albedo = props["reflectance"]
+        if not isinstance(albedo, mi.Texture):  # a constant arrives as a colour
+            albedo = mi.load_dict({"type": "rgb", "value": [float(albedo[0]), float(albedo[1]), float(albedo[2])]})
+        self.albedo = albedo
         self.r = dr.clip(mi.Float(props["roughness"]), 0.02, 1.0)
         flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.GlossyReflection | mi.BSDFFlags.FrontSide
         self.m_components = [flags]

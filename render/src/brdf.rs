@@ -160,6 +160,26 @@ impl Karis {
         ps * spec + (1.0 - ps) * diffuse
     }
 
+    /// `(f(wo, wi), pdf(wo, wi))` sharing the half-vector terms (what NEE and sampling need).
+    #[inline]
+    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let diffuse = self.albedo * (1.0 / PI);
+        let ps = self.specular_probability(wo);
+        if ps == 0.0 {
+            return (diffuse, wi.z / PI);
+        }
+        let h = (wo + wi).normalize();
+        let v_h = wo.dot(h).max(0.0);
+        let d = ggx_d(h.z, self.roughness);
+        let g = g1(wo.z, self.roughness) * g1(wi.z, self.roughness);
+        let spec = self.specular_weight * d * fresnel(v_h) * g / (4.0 * wo.z * wi.z);
+        let pdf = ps * d * h.z / (4.0 * v_h.max(1e-8)) + (1.0 - ps) * wi.z / PI;
+        (diffuse + Vec3::splat(spec), pdf)
+    }
+
     /// Sample `wi` for `wo`; `u_lobe` picks the lobe, `u` the direction. `None` when the sampled
     /// direction falls below the surface (that probability mass is simply lost).
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: [f32; 2]) -> Option<BrdfSample> {
@@ -184,11 +204,11 @@ impl Karis {
         if wi.z <= 1e-7 {
             return None;
         }
-        let pdf = self.pdf(wo, wi);
+        let (f, pdf) = self.eval_pdf(wo, wi);
         if !(pdf > 0.0) || !pdf.is_finite() {
             return None;
         }
-        let weight = self.eval(wo, wi) * (wi.z / pdf);
+        let weight = f * (wi.z / pdf);
         Some(BrdfSample { wi, weight, pdf })
     }
 }

@@ -68,7 +68,7 @@ impl Bvh {
             .iter()
             .map(|t| Triangle { v0: t[0].to_array().into(), v1: t[1].to_array().into(), v2: t[2].to_array().into() })
             .collect();
-        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut Duration::default());
+        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::very_slow_build(), &mut Duration::default());
         let tris = bvh
             .primitive_indices
             .iter()

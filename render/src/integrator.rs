@@ -240,8 +240,8 @@ impl Renderer {
                                 st.rays += 1;
                                 if !self.geometry.occluded(origin, wi, dist * (1.0 - 1e-4) - self.geometry.eps) {
                                     let pdf_l = p_sel * lp.pdf_area * dist2 / cos_l;
-                                    let f = brdf.eval(wo_l, wi_l);
-                                    let w = power_heuristic(pdf_l, brdf.pdf(wo_l, wi_l));
+                                    let (f, pdf_b) = brdf.eval_pdf(wo_l, wi_l);
+                                    let w = power_heuristic(pdf_l, pdf_b);
                                     st.out[slot] += beta * f * (wi_l.z * w / pdf_l);
                                 }
                             }
@@ -254,8 +254,8 @@ impl Renderer {
                             st.rays += 1;
                             if !self.geometry.occluded(origin, wi, f32::INFINITY) {
                                 let pdf_l = p_sel * pdf;
-                                let f = brdf.eval(wo_l, wi_l);
-                                let w = power_heuristic(pdf_l, brdf.pdf(wo_l, wi_l));
+                                let (f, pdf_b) = brdf.eval_pdf(wo_l, wi_l);
+                                let w = power_heuristic(pdf_l, pdf_b);
                                 st.out[slot] += beta * f * le * (wi_l.z * w / pdf_l);
                             }
                         }

@@ -57,28 +57,74 @@ impl SurfaceMaterial for ConstantMaterial {
     }
 }
 
-/// A linear RGB image sampled bilinearly with repeat wrapping, OBJ v-up convention.
+/// Texel storage: 8-bit sRGB (decoded through a table at lookup; 4 bytes a texel keeps large
+/// textures cache-friendly) or linear floats.
+#[derive(Clone, Debug)]
+enum Texels {
+    Srgb8(Vec<[u8; 4]>),
+    Linear(Vec<[f32; 3]>),
+}
+
+/// sRGB byte → linear, the same values as `srgb_to_linear(i / 255)`.
+fn srgb_table() -> &'static [f32; 256] {
+    static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| std::array::from_fn(|i| crate::image_io::srgb_to_linear(i as f32 / 255.0)))
+}
+
+/// An RGB image sampled bilinearly with repeat wrapping, OBJ v-up convention; values linear.
 #[derive(Clone, Debug)]
 pub struct Texture {
     pub width: usize,
     pub height: usize,
-    /// Row-major, row 0 = top of the image.
-    pub data: Vec<[f32; 3]>,
+    texels: Texels,
 }
 
 impl Texture {
+    /// From linear texels, row-major, row 0 = top of the image.
     pub fn new(width: usize, height: usize, data: Vec<[f32; 3]>) -> Result<Self, RenderError> {
         if width == 0 || height == 0 || data.len() != width * height {
             return Err(RenderError::Invalid(format!("texture of {width}x{height} needs {} texels, got {}", width * height, data.len())));
         }
-        Ok(Texture { width, height, data })
+        Ok(Texture { width, height, texels: Texels::Linear(data) })
     }
 
-    /// Load an 8/16-bit PNG/JPEG (decoded from sRGB when `srgb`, else taken as linear /255) or a
-    /// linear EXR.
+    /// From 8-bit sRGB texels (4th byte unused), row-major, row 0 = top of the image.
+    pub fn from_srgb8(width: usize, height: usize, data: Vec<[u8; 4]>) -> Result<Self, RenderError> {
+        if width == 0 || height == 0 || data.len() != width * height {
+            return Err(RenderError::Invalid(format!("texture of {width}x{height} needs {} texels, got {}", width * height, data.len())));
+        }
+        Ok(Texture { width, height, texels: Texels::Srgb8(data) })
+    }
+
+    /// Load an 8/16-bit PNG/JPEG (decoded from sRGB when `srgb`, else taken as linear /max) or a
+    /// linear EXR. 8-bit sRGB images stay 8-bit in memory.
     pub fn load(path: &Path, srgb: bool) -> Result<Self, RenderError> {
+        let is_exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+        if srgb && !is_exr && path.is_file() {
+            let img = image::open(path).map_err(|e| RenderError::image(path, e))?;
+            if matches!(img.color(), image::ColorType::Rgb8 | image::ColorType::Rgba8 | image::ColorType::L8 | image::ColorType::La8) {
+                let rgb = img.to_rgb8();
+                let (w, h) = (rgb.width() as usize, rgb.height() as usize);
+                let data = rgb.pixels().map(|p| [p[0], p[1], p[2], 0]).collect();
+                return Texture::from_srgb8(w, h, data);
+            }
+        }
         let img = image_io::read_rgb(path, srgb)?;
         Texture::new(img.width, img.height, img.data)
+    }
+
+    /// Linear value of texel (x, y), row 0 = top.
+    #[inline]
+    pub fn texel(&self, x: usize, y: usize) -> [f32; 3] {
+        let i = y * self.width + x;
+        match &self.texels {
+            Texels::Linear(d) => d[i],
+            Texels::Srgb8(d) => {
+                let t = srgb_table();
+                let p = d[i];
+                [t[p[0] as usize], t[p[1] as usize], t[p[2] as usize]]
+            }
+        }
     }
 
     /// Bilinear lookup at OBJ-convention (u, v), repeat wrap.
@@ -91,7 +137,7 @@ impl Texture {
         let x = u * w - 0.5;
         let y = (1.0 - v) * h - 0.5;
         if !(x.is_finite() && y.is_finite()) {
-            return self.data[0];
+            return self.texel(0, 0);
         }
         let (x0f, y0f) = ((x + 1.0) as i32 - 1, (y + 1.0) as i32 - 1); // floor for x >= -1
         let (fx, fy) = (x - x0f as f32, y - y0f as f32);
@@ -100,8 +146,7 @@ impl Texture {
         };
         let (x0, x1) = (wrap(x0f, self.width), wrap(x0f + 1, self.width));
         let (y0, y1) = (wrap(y0f, self.height), wrap(y0f + 1, self.height));
-        let (r0, r1) = (y0 * self.width, y1 * self.width);
-        let (a, b, c, d) = (self.data[r0 + x0], self.data[r0 + x1], self.data[r1 + x0], self.data[r1 + x1]);
+        let (a, b, c, d) = (self.texel(x0, y0), self.texel(x1, y0), self.texel(x0, y1), self.texel(x1, y1));
         let mut out = [0.0; 3];
         for k in 0..3 {
             let top = a[k] + (b[k] - a[k]) * fx;

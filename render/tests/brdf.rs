@@ -182,3 +182,17 @@ fn sample_weight_is_f_cos_over_pdf() {
         }
     }
 }
+
+#[test]
+fn eval_pdf_agrees_with_eval_and_pdf() {
+    let mut rng = Rng::new(4, 4, 4);
+    for _ in 0..2000 {
+        let b = Karis::new(Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()), rng.next_f32());
+        let (mut wo, mut wi) = (uniform_sphere(&mut rng), uniform_sphere(&mut rng));
+        wo.z = wo.z.abs();
+        wi.z = wi.z.abs();
+        let (f, p) = b.eval_pdf(wo, wi);
+        assert!((f - b.eval(wo, wi)).abs().max_element() <= 1e-5 * f.max_element().max(1.0));
+        assert!((p - b.pdf(wo, wi)).abs() <= 1e-5 * p.max(1.0));
+    }
+}
