@@ -159,6 +159,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
             threads: args.threads,
             progress: !args.quiet,
             per_light: args.per_light,
+            diffuse_only: args.diffuse_only,
             ..Default::default()
         };
         let start = std::time::Instant::now();

@@ -46,11 +46,13 @@ pub struct LightGridOptions {
     pub progress: bool,
     /// Keep one grid per light slot.
     pub per_light: bool,
+    /// Validation only: Lambertian bounces (the specular lobe off) along the grid's paths.
+    pub diffuse_only: bool,
 }
 
 impl Default for LightGridOptions {
     fn default() -> Self {
-        LightGridOptions { stride: 8, samples_per_bin: 4, seed: 0, max_depth: 6, rr_depth: 5, threads: None, progress: false, per_light: false }
+        LightGridOptions { stride: 8, samples_per_bin: 4, seed: 0, max_depth: 6, rr_depth: 5, threads: None, progress: false, per_light: false, diffuse_only: false }
     }
 }
 
@@ -109,7 +111,7 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
     let ns = r.n_slots();
     let n_parts = r.part_names.len() as u32;
     let bar = progress_bar(opts.progress, (gw * gh) as u64, "light grid");
-    let cfg = PathConfig { max_depth: opts.max_depth.saturating_sub(1), rr_depth: opts.rr_depth, per_light: opts.per_light, diffuse_only: false };
+    let cfg = PathConfig { max_depth: opts.max_depth.saturating_sub(1), rr_depth: opts.rr_depth, per_light: opts.per_light, diffuse_only: opts.diffuse_only };
     let cells: Vec<Cell> = run_in_pool(opts.threads, || {
         (0..gw * gh)
             .into_par_iter()
