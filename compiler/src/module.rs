@@ -115,7 +115,9 @@ impl ModuleSet {
                 let lossy = String::from_utf8_lossy(e.as_bytes()).into_owned();
                 let file = self.sources.add(display_name, lossy);
                 self.diagnostics.push(
-                    Diagnostic::error(file, Span::new(at, at + 1), "file is not valid UTF-8")
+                    // The stored text is the lossy conversion, where the bad byte became U+FFFD
+                // (three bytes): the caret must cover that whole character.
+                Diagnostic::error(file, Span::new(at, at + '\u{FFFD}'.len_utf8()), "file is not valid UTF-8")
                         .with_label("invalid byte here")
                         .with_hint("is this a binary file? .psg graphs are UTF-8 text"),
                 );

@@ -77,12 +77,7 @@ fn check_output(out: &CompileOutput) -> Result<(), String> {
 
 fn check_span(out: &CompileOutput, file: psc_compiler::diag::FileId, span: psc_grammar::ast::Span, d: &Diagnostic) -> Result<(), String> {
     let text = out.sources.text(file);
-    // KNOWN ISSUE (reported, compiler/src/module.rs `load_text`): the "not valid UTF-8" error
-    // spans the one invalid byte `at..at+1` of the input, but the stored text is the lossy
-    // conversion, where that byte became U+FFFD (three bytes), so the span ends inside a char.
-    // Rendering clamps it; the span still lies within the text, which is checked.
-    let known_mid_char = d.message == "file is not valid UTF-8" && span.end == span.start + 1 && text.is_char_boundary(span.start);
-    let on_boundaries = text.is_char_boundary(span.start.min(text.len())) && (known_mid_char || text.is_char_boundary(span.end.min(text.len())));
+    let on_boundaries = text.is_char_boundary(span.start.min(text.len())) && text.is_char_boundary(span.end.min(text.len()));
     if span.start > span.end || span.end > text.len() || !on_boundaries {
         return Err(format!(
             "span {}..{} of `{}` is not within its file `{}` ({} bytes) on char boundaries",

@@ -6,3 +6,5 @@
 //! compiler's), or generate code (that is the JIT's).
 
 pub mod kernel;
+pub mod library;
+pub mod material;

@@ -3,7 +3,7 @@
 use std::collections::HashMap;
 
 use crate::builtins::Builtin;
-use crate::diff::forward::{derivative, Wrt};
+use crate::diff::forward::ForwardDiff;
 use crate::ir::{Builder, NodeId, Op};
 
 use super::Value;
@@ -157,9 +157,11 @@ pub(super) fn lower_builtin(b: &mut Builder, which: Builtin, args: &[Value]) -> 
     }
 }
 
-/// `∂value/∂u` or `∂value/∂v`, componentwise.
-pub(super) fn partial(b: &mut Builder, value: &Value, wrt: Wrt) -> Value {
-    value.map_nodes(&mut |id| derivative(b, id, wrt))
+/// `∂value/∂u` or `∂value/∂v` (whichever `diff` differentiates), componentwise. One
+/// differentiator per variable lives as long as the graph's builder, so derivatives of shared
+/// subexpressions are emitted once for the whole graph.
+pub(super) fn partial(b: &mut Builder, diff: &mut ForwardDiff, value: &Value) -> Value {
+    value.map_nodes(&mut |id| diff.derivative(b, id))
 }
 
 /// The value `roots` would have if `uv` were `(u, v)`: every node depending on `U`/`V` is

@@ -6,7 +6,6 @@ use super::builtins::{lower_builtin, partial, substitute, zip_with};
 use super::{Lowered, Lowerer, Value};
 use crate::builtins::Builtin;
 use crate::check::MAX_LOOP_TRIPS;
-use crate::diff::forward::Wrt;
 use crate::ir::NodeId;
 use crate::module::ItemRef;
 use crate::types::swizzle;
@@ -251,8 +250,8 @@ impl Lowerer<'_> {
                         let (u, v) = (values[1].comp(0), values[1].comp(1));
                         substitute(&mut self.b, &values[0], u, v)
                     }
-                    Builtin::Ddu => partial(&mut self.b, &values[0], Wrt::U),
-                    Builtin::Ddv => partial(&mut self.b, &values[0], Wrt::V),
+                    Builtin::Ddu => partial(&mut self.b, &mut self.d_du, &values[0]),
+                    Builtin::Ddv => partial(&mut self.b, &mut self.d_dv, &values[0]),
                     other => lower_builtin(&mut self.b, other, &values),
                 })
             }

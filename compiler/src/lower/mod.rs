@@ -14,7 +14,7 @@ use std::time::Instant;
 use psc_grammar::ast::{self, GraphMember, Span};
 
 use crate::diag::{Diagnostic, FileId};
-use crate::diff::forward::Wrt;
+use crate::diff::forward::{ForwardDiff, Wrt};
 use crate::graph::{CompileStats, CompiledGraph, GraphInfo, ParamInfo, ParamKind, CHANNELS};
 use crate::ir::{Builder, NodeId, Output};
 use crate::module::{ItemRef, ModuleId, ModuleSet};
@@ -85,6 +85,8 @@ pub(crate) struct Lowerer<'a> {
     locals: Vec<(String, Value)>,
     graph: Option<Rc<GraphEnv>>,
     consts: HashMap<ItemRef, Value>,
+    d_du: ForwardDiff,
+    d_dv: ForwardDiff,
 }
 
 impl<'a> Lowerer<'a> {
@@ -97,6 +99,8 @@ impl<'a> Lowerer<'a> {
             locals: Vec::new(),
             graph: None,
             consts: HashMap::new(),
+            d_du: ForwardDiff::new(Wrt::U),
+            d_dv: ForwardDiff::new(Wrt::V),
         }
     }
 
@@ -185,8 +189,8 @@ pub fn lower_graph(set: &ModuleSet, module: ModuleId, g: &ast::GraphDef) -> Resu
     let normal = match outs.get("normal") {
         Some(n) => builtins::normalize(&mut l.b, n),
         None => {
-            let du = builtins::partial(&mut l.b, &height, Wrt::U).comp(0);
-            let dv = builtins::partial(&mut l.b, &height, Wrt::V).comp(0);
+            let du = builtins::partial(&mut l.b, &mut l.d_du, &height).comp(0);
+            let dv = builtins::partial(&mut l.b, &mut l.d_dv, &height).comp(0);
             let one = l.b.constant(1.0);
             let nx = l.b.neg(du);
             let ny = l.b.neg(dv);

@@ -1,0 +1,119 @@
+//! The material library: every graph under a folder compiled once, with its JIT kernels.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use psc_compiler::{compile_files, CompiledGraph, Options};
+use rayon::prelude::*;
+
+use crate::kernel::{Kernel, KernelError};
+
+/// One compiled graph and its native forward and adjoint kernels.
+pub struct Material {
+    pub graph: CompiledGraph,
+    pub kernel: Kernel,
+}
+
+impl Material {
+    /// Compiles the JIT kernels (forward and fused forward + adjoint) of a compiled graph.
+    pub fn new(graph: CompiledGraph) -> Result<Material, KernelError> {
+        let adjoint = graph.adjoint();
+        let kernel = Kernel::with_adjoint(graph.forward.clone(), adjoint)?;
+        Ok(Material { graph, kernel })
+    }
+
+    pub fn name(&self) -> &str {
+        &self.graph.info.name
+    }
+}
+
+#[derive(Debug)]
+pub enum LibraryError {
+    /// Source problems, rendered (file:line:col, caret, hint), one diagnostic after another.
+    Diagnostics(String),
+    Kernel { graph: String, error: KernelError },
+    Io(String),
+}
+
+impl fmt::Display for LibraryError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LibraryError::Diagnostics(text) => write!(f, "the graphs have errors:\n{text}"),
+            LibraryError::Kernel { graph, error } => write!(f, "cannot compile graph `{graph}` to native code: {error}"),
+            LibraryError::Io(m) => f.write_str(m),
+        }
+    }
+}
+
+impl std::error::Error for LibraryError {}
+
+/// Every material graph of a library folder (the `std/` modules are imported, not listed).
+pub struct Library {
+    pub materials: Vec<Arc<Material>>,
+    /// Front end (parse, check, lower, differentiate) and JIT time, for reports.
+    pub front_end_time: Duration,
+    pub jit_time: Duration,
+}
+
+impl Library {
+    /// Compiles every `.psg` file under `root` (recursively) and JIT-compiles its graphs.
+    pub fn load(root: &Path) -> Result<Library, LibraryError> {
+        let files = psg_files(root).map_err(|e| LibraryError::Io(format!("cannot read {}: {e}", root.display())))?;
+        Library::compile(&files, &Options { lib_root: Some(root.to_path_buf()) })
+    }
+
+    /// Compiles the given files; any error in any of them fails the whole library.
+    pub fn compile(files: &[PathBuf], options: &Options) -> Result<Library, LibraryError> {
+        let started = Instant::now();
+        let output = compile_files(files, options);
+        if output.has_errors() {
+            return Err(LibraryError::Diagnostics(output.render_diagnostics()));
+        }
+        let front_end_time = started.elapsed();
+        let started = Instant::now();
+        let materials: Result<Vec<_>, _> = output
+            .graphs
+            .into_par_iter()
+            .map(|graph| {
+                let name = graph.info.name.clone();
+                Material::new(graph).map(Arc::new).map_err(|error| LibraryError::Kernel { graph: name, error })
+            })
+            .collect();
+        Ok(Library { materials: materials?, front_end_time, jit_time: started.elapsed() })
+    }
+
+    pub fn get(&self, name: &str) -> Option<&Arc<Material>> {
+        self.materials.iter().find(|m| m.name() == name)
+    }
+
+    pub fn names(&self) -> impl Iterator<Item = &str> {
+        self.materials.iter().map(|m| m.name())
+    }
+}
+
+/// The library folder shipped with photoscene (`graphs/` at the repository root).
+pub fn default_library_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("graphs")
+}
+
+/// Every `.psg` file under `root`, sorted, excluding the `std/` module folder.
+pub fn psg_files(root: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir)? {
+            let path = entry?.path();
+            if path.is_dir() {
+                if path.file_name().is_some_and(|n| n != "std") {
+                    stack.push(path);
+                }
+            } else if path.extension().is_some_and(|e| e == "psg") {
+                out.push(path);
+            }
+        }
+    }
+    out.sort();
+    Ok(out)
+}
