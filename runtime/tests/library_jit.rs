@@ -2,7 +2,15 @@
 //! the reference interpreter on random parameters and points, forward and adjoint.
 
 use psc_compiler::interp::{self, Batch};
+use std::sync::OnceLock;
+
 use psc_runtime::library::{default_library_root, Library};
+
+/// Compiled once for all tests of this file: JIT-compiling 31 graphs twice is wasted time.
+fn library() -> &'static Library {
+    static LIBRARY: OnceLock<Library> = OnceLock::new();
+    LIBRARY.get_or_init(|| Library::load(&default_library_root()).unwrap_or_else(|e| panic!("{e}")))
+}
 
 /// Deterministic xorshift, so failures reproduce.
 struct Rng(u64);
@@ -34,7 +42,7 @@ fn close(a: f32, b: f32, tol: f32) -> bool {
 
 #[test]
 fn jit_matches_the_interpreter_on_every_library_graph() {
-    let lib = Library::load(&default_library_root()).unwrap_or_else(|e| panic!("{e}"));
+    let lib = library();
     assert!(lib.materials.len() >= 30, "the library has {} graphs", lib.materials.len());
     let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
     let n = 512;
@@ -68,7 +76,7 @@ fn jit_matches_the_interpreter_on_every_library_graph() {
 
 #[test]
 fn jit_adjoint_matches_the_interpreter_adjoint() {
-    let lib = Library::load(&default_library_root()).unwrap_or_else(|e| panic!("{e}"));
+    let lib = library();
     let mut rng = Rng(12345);
     let n = 256;
     for m in &lib.materials {
