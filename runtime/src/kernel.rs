@@ -1,1 +1,247 @@
-//! Parallel kernels over compiled graphs (placeholder).
+//! Compiled graphs as parallel kernels over batches of points.
+//!
+//! A [`Kernel`] is a forward [`Program`] with its native code and, optionally, the adjoint
+//! program (from `psc_compiler::diff::reverse::adjoint`) with its native code. Batches are
+//! split into fixed [`CHUNK`]-point chunks evaluated in parallel with rayon. Chunk boundaries
+//! do not depend on the thread count and every point's arithmetic is independent of which
+//! chunk or vector lane it lands in, so per-point results are bit-identical for any number of
+//! threads. Parameter gradients are summed per chunk in f64, then the chunk partials are added
+//! sequentially in chunk order: the summed gradient is bit-identical for any thread count too.
+//!
+//! Adjoint program layout (the contract with `diff::reverse`): one seed per forward output;
+//! outputs are the forward outputs (same names, same order), then `d_u`, `d_v`, then
+//! `d_param{slot}` for each differentiated parameter slot.
+
+use std::fmt;
+
+use psc_compiler::ir::Program;
+use psc_jit::{CompiledKernel, JitError};
+use rayon::prelude::*;
+
+/// Points per parallel work item. A multiple of every vector width the JIT uses, so only
+/// the batch's last chunk has a partial vector.
+pub const CHUNK: usize = 4096;
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum KernelError {
+    Jit(JitError),
+    /// Arguments disagree with the program or with each other.
+    Shape(String),
+    /// [`Kernel::adjoint`] on a kernel built without an adjoint program.
+    NoAdjoint,
+    /// The adjoint program does not have the layout described in the module docs.
+    BadAdjoint(String),
+}
+
+impl fmt::Display for KernelError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            KernelError::Jit(e) => e.fmt(f),
+            KernelError::Shape(m) => write!(f, "kernel arguments do not match: {m}"),
+            KernelError::NoAdjoint => write!(f, "this kernel was built without an adjoint"),
+            KernelError::BadAdjoint(m) => write!(f, "adjoint program has an unexpected layout: {m}"),
+        }
+    }
+}
+
+impl std::error::Error for KernelError {}
+
+impl From<JitError> for KernelError {
+    fn from(e: JitError) -> Self {
+        KernelError::Jit(e)
+    }
+}
+
+struct AdjointKernel {
+    program: Program,
+    jit: CompiledKernel,
+    /// Parameter slot of each `d_param` output, in output order.
+    wrt: Vec<u32>,
+}
+
+/// A forward program, its compiled kernel, and optionally its compiled adjoint.
+pub struct Kernel {
+    forward: Program,
+    forward_jit: CompiledKernel,
+    adjoint: Option<AdjointKernel>,
+}
+
+/// Result of [`Kernel::adjoint`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Gradients {
+    /// Forward outputs at every point (the adjoint computes them anyway), SoA.
+    pub values: Vec<Vec<f32>>,
+    /// Per point: sum over outputs of seed × d output / d u.
+    pub d_u: Vec<f32>,
+    pub d_v: Vec<f32>,
+    /// Indexed by parameter slot (`forward().num_params` long), summed over all points;
+    /// zero for slots the adjoint does not differentiate.
+    pub d_params: Vec<f64>,
+}
+
+impl Kernel {
+    /// Compiles a forward-only kernel.
+    pub fn new(forward: Program) -> Result<Kernel, KernelError> {
+        let forward_jit = psc_jit::compile(&forward)?;
+        Ok(Kernel { forward, forward_jit, adjoint: None })
+    }
+
+    /// Compiles a kernel with its adjoint, checking the adjoint's layout against `forward`.
+    pub fn with_adjoint(forward: Program, adjoint: Program) -> Result<Kernel, KernelError> {
+        let wrt = adjoint_layout(&forward, &adjoint)?;
+        let jit = psc_jit::compile(&adjoint)?;
+        let mut k = Kernel::new(forward)?;
+        k.adjoint = Some(AdjointKernel { program: adjoint, jit, wrt });
+        Ok(k)
+    }
+
+    pub fn forward(&self) -> &Program {
+        &self.forward
+    }
+    pub fn forward_jit(&self) -> &CompiledKernel {
+        &self.forward_jit
+    }
+    pub fn adjoint_program(&self) -> Option<&Program> {
+        self.adjoint.as_ref().map(|a| &a.program)
+    }
+    pub fn adjoint_jit(&self) -> Option<&CompiledKernel> {
+        self.adjoint.as_ref().map(|a| &a.jit)
+    }
+    /// Parameter slots the adjoint differentiates (empty without an adjoint).
+    pub fn wrt_params(&self) -> &[u32] {
+        self.adjoint.as_ref().map_or(&[], |a| &a.wrt)
+    }
+
+    /// Forward outputs at the points `(u[k], v[k])`, one column per output.
+    pub fn eval(&self, params: &[f32], u: &[f32], v: &[f32]) -> Result<Vec<Vec<f32>>, KernelError> {
+        check_points(u, v)?;
+        let n = u.len();
+        let mut cols = vec![vec![0.0f32; n]; self.forward_jit.num_outputs()];
+        let work = split_columns(&mut cols, n);
+        work.into_par_iter().enumerate().try_for_each(|(c, mut outs)| {
+            let r = chunk_range(c, n);
+            self.forward_jit.run(params, &u[r.clone()], &v[r], &[], &mut outs)
+        })?;
+        Ok(cols)
+    }
+
+    /// Forward outputs at the texel centres of a `w`×`h` image, row-major, each column
+    /// `w*h` long. Texel `(x, y)` is at `u = (x + 0.5) / w`, `v = 1 - (y + 0.5) / h`: row 0
+    /// is the top of the image (v near 1), matching the OpenGL/OBJ convention that v grows
+    /// upward while images are stored top row first.
+    pub fn eval_grid(&self, params: &[f32], w: usize, h: usize) -> Result<Vec<Vec<f32>>, KernelError> {
+        let (u, v) = grid_uv(w, h)?;
+        self.eval(params, &u, &v)
+    }
+
+    /// Reverse-mode gradients: `d_out[o][k]` is the incoming gradient of output `o` at point
+    /// `k`. Returns the forward values, per-point `d_u`, `d_v`, and per-slot parameter
+    /// gradients summed over all points (deterministically, see the module docs).
+    pub fn adjoint(&self, params: &[f32], u: &[f32], v: &[f32], d_out: &[&[f32]]) -> Result<Gradients, KernelError> {
+        let adj = self.adjoint.as_ref().ok_or(KernelError::NoAdjoint)?;
+        check_points(u, v)?;
+        let n = u.len();
+        let nf = self.forward.outputs.len();
+        if d_out.len() != nf {
+            return Err(KernelError::Shape(format!("{} gradient columns given, the graph has {nf} outputs", d_out.len())));
+        }
+        if let Some((o, c)) = d_out.iter().enumerate().find(|(_, c)| c.len() != n) {
+            return Err(KernelError::Shape(format!("gradient column {o} has {} points, u has {n}", c.len())));
+        }
+        let nw = adj.wrt.len();
+        // Columns kept per point: forward values, d_u, d_v. d_param columns are chunk scratch.
+        let mut kept = vec![vec![0.0f32; n]; nf + 2];
+        let work = split_columns(&mut kept, n);
+        let partials: Vec<Vec<f64>> = work
+            .into_par_iter()
+            .enumerate()
+            .map(|(c, mut outs)| -> Result<Vec<f64>, JitError> {
+                let r = chunk_range(c, n);
+                let len = r.len();
+                let seeds: Vec<&[f32]> = d_out.iter().map(|s| &s[r.clone()]).collect();
+                let mut scratch = vec![vec![0.0f32; len]; nw];
+                outs.extend(scratch.iter_mut().map(|s| &mut s[..]));
+                adj.jit.run(params, &u[r.clone()], &v[r], &seeds, &mut outs)?;
+                // Sequential f64 sums: the order within a chunk is fixed.
+                Ok(scratch.iter().map(|col| col.iter().map(|&g| f64::from(g)).sum()).collect())
+            })
+            .collect::<Result<_, _>>()?;
+        let mut d_params = vec![0.0f64; self.forward.num_params];
+        for partial in &partials {
+            for (slot, g) in adj.wrt.iter().zip(partial) {
+                d_params[*slot as usize] += g;
+            }
+        }
+        let d_v = kept.pop().unwrap_or_default();
+        let d_u = kept.pop().unwrap_or_default();
+        Ok(Gradients { values: kept, d_u, d_v, d_params })
+    }
+}
+
+/// Texel-centre coordinates of a `w`×`h` grid, row 0 at the top (see [`Kernel::eval_grid`]).
+pub fn grid_uv(w: usize, h: usize) -> Result<(Vec<f32>, Vec<f32>), KernelError> {
+    let n = w.checked_mul(h).ok_or_else(|| KernelError::Shape(format!("{w}x{h} grid is too large")))?;
+    let mut u = Vec::with_capacity(n);
+    let mut v = Vec::with_capacity(n);
+    for y in 0..h {
+        // Computed from the flipped row index so rows are exact mirrors of each other.
+        let vy = ((h - 1 - y) as f32 + 0.5) / h as f32;
+        for x in 0..w {
+            u.push((x as f32 + 0.5) / w as f32);
+            v.push(vy);
+        }
+    }
+    Ok((u, v))
+}
+
+fn check_points(u: &[f32], v: &[f32]) -> Result<(), KernelError> {
+    if u.len() != v.len() {
+        return Err(KernelError::Shape(format!("u has {} points but v has {}", u.len(), v.len())));
+    }
+    Ok(())
+}
+
+fn chunk_range(c: usize, n: usize) -> std::ops::Range<usize> {
+    c * CHUNK..((c + 1) * CHUNK).min(n)
+}
+
+/// Regroups `cols` (each `n` long) into per-chunk lists of mutable column slices.
+fn split_columns(cols: &mut [Vec<f32>], n: usize) -> Vec<Vec<&mut [f32]>> {
+    let chunks = n.div_ceil(CHUNK);
+    let mut work: Vec<Vec<&mut [f32]>> = (0..chunks).map(|_| Vec::with_capacity(cols.len())).collect();
+    for col in cols.iter_mut() {
+        for (c, piece) in col.chunks_mut(CHUNK).enumerate() {
+            work[c].push(piece);
+        }
+    }
+    work
+}
+
+/// Checks the adjoint layout; returns the parameter slot of each `d_param` output.
+fn adjoint_layout(forward: &Program, adjoint: &Program) -> Result<Vec<u32>, KernelError> {
+    let bad = |m: String| Err(KernelError::BadAdjoint(m));
+    let nf = forward.outputs.len();
+    if adjoint.num_seeds != nf {
+        return bad(format!("{} seeds for {nf} forward outputs", adjoint.num_seeds));
+    }
+    if adjoint.outputs.len() < nf + 2 {
+        return bad(format!("{} outputs, expected at least {}", adjoint.outputs.len(), nf + 2));
+    }
+    for (f, a) in forward.outputs.iter().zip(&adjoint.outputs) {
+        if f.name != a.name {
+            return bad(format!("output `{}` where forward output `{}` was expected", a.name, f.name));
+        }
+    }
+    if adjoint.outputs[nf].name != "d_u" || adjoint.outputs[nf + 1].name != "d_v" {
+        return bad(format!("outputs `{}`, `{}` where `d_u`, `d_v` were expected", adjoint.outputs[nf].name, adjoint.outputs[nf + 1].name));
+    }
+    let mut wrt = Vec::new();
+    for out in &adjoint.outputs[nf + 2..] {
+        let slot = out.name.strip_prefix("d_param").and_then(|s| s.parse::<u32>().ok());
+        match slot {
+            Some(s) if (s as usize) < forward.num_params && !wrt.contains(&s) => wrt.push(s),
+            _ => return bad(format!("output `{}` is not `d_param<slot>` for a distinct slot < {}", out.name, forward.num_params)),
+        }
+    }
+    Ok(wrt)
+}

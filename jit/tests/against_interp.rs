@@ -1,0 +1,158 @@
+//! The JIT against its oracles on random DAGs:
+//! - all ops: bit-exact with the scalar mirror (`psc_jit::mirror_eval_point`), which is the
+//!   same op definitions instantiated on `f32` — this checks the vector lowering of every
+//!   primitive, the loop structure and the padded tail, for every n;
+//! - no transcendentals: bit-exact with the reference interpreter (NaN payloads and the sign
+//!   of a zero from `sqrt(max(-0, 0))` aside, see `common::same`);
+//! - transcendentals on well-conditioned programs: within 1e-4 absolute of the interpreter
+//!   (every node there stays in [-1, 1] with derivatives ≲ 1, so this is ~1000x the per-op polynomial error).
+
+mod common;
+
+use common::{random_program, run_jit, same, same_bits, OpSet, Rng};
+use proptest::prelude::*;
+use psc_compiler::interp;
+use psc_compiler::ir::{Builder, NodeId, Output, Program};
+use psc_jit::{compile_with, mirror_eval_point, OptLevel, Options};
+
+fn points(seed: u64, n: usize, num_params: usize, num_seeds: usize, nasty: bool) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<Vec<f32>>) {
+    let mut r = Rng(seed);
+    let draw = |r: &mut Rng| if nasty { r.nasty() } else { r.uniform(-1.0, 1.0) };
+    let u = (0..n).map(|_| draw(&mut r)).collect();
+    let v = (0..n).map(|_| draw(&mut r)).collect();
+    let p = (0..num_params).map(|_| draw(&mut r)).collect();
+    let s = (0..num_seeds).map(|_| (0..n).map(|_| draw(&mut r)).collect()).collect();
+    (u, v, p, s)
+}
+
+fn options(k: u8) -> Options {
+    let opt_level = if k & 1 == 0 { OptLevel::Speed } else { OptLevel::None };
+    Options { opt_level, groups: [1, 2, 4][(k as usize >> 1) % 3] }
+}
+
+fn spec() -> impl Strategy<Value = Vec<(u8, u32, u32, u32)>> {
+    prop::collection::vec((any::<u8>(), any::<u32>(), any::<u32>(), any::<u32>()), 1..40)
+}
+
+fn consts() -> impl Strategy<Value = Vec<f32>> {
+    prop::collection::vec(
+        prop::sample::select(vec![0.5f32, 2.0, -1.5, 3.7, 1e3, -1e-3, 0.0, 7.0, f32::NAN, f32::INFINITY, 1e20]),
+        0..4,
+    )
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    #[test]
+    fn jit_matches_mirror_bit_exactly(spec in spec(), consts in consts(), seeds in 0u32..3,
+                                      outs in prop::collection::vec(any::<u32>(), 0..4),
+                                      n in prop::sample::select(vec![0usize, 1, 2, 3, 4, 5, 7, 8, 9, 15, 16, 17, 31, 33, 64, 67]),
+                                      pts in any::<u64>(), opt in any::<u8>()) {
+        let prog = random_program(&spec, &consts, seeds, &outs, OpSet::All);
+        let k = compile_with(&prog, &options(opt)).unwrap();
+        let (u, v, p, s) = points(pts, n, prog.num_params, prog.num_seeds, true);
+        let got = run_jit(&k, &p, &u, &v, &s);
+        for i in 0..n {
+            let seeds_i: Vec<f32> = s.iter().map(|c| c[i]).collect();
+            let want = mirror_eval_point(&prog, k.uses_fma(), &p, u[i], v[i], &seeds_i);
+            for (o, w) in want.iter().enumerate() {
+                prop_assert!(same_bits(got[o][i], *w),
+                    "point {i} of {n} output {o}: jit {:e} ({:#x}) mirror {:e} ({:#x}) at u={:e} v={:e}",
+                    got[o][i], got[o][i].to_bits(), w, w.to_bits(), u[i], v[i]);
+            }
+        }
+    }
+
+    #[test]
+    fn jit_matches_interpreter_without_transcendentals(spec in spec(), consts in consts(), seeds in 0u32..3,
+                                      outs in prop::collection::vec(any::<u32>(), 0..4),
+                                      n in 0usize..70, pts in any::<u64>(), opt in any::<u8>()) {
+        let prog = random_program(&spec, &consts, seeds, &outs, OpSet::Exact);
+        let k = compile_with(&prog, &options(opt)).unwrap();
+        let (u, v, p, s) = points(pts, n, prog.num_params, prog.num_seeds, true);
+        let got = run_jit(&k, &p, &u, &v, &s);
+        let seed_refs: Vec<&[f32]> = s.iter().map(|c| &c[..]).collect();
+        let want = interp::eval(&prog, &p, &interp::Batch { u: &u, v: &v, seeds: &seed_refs });
+        for (o, col) in want.iter().enumerate() {
+            for i in 0..n {
+                prop_assert!(same(got[o][i], col[i]), "output {o} point {i}: jit {:e} interp {:e}", got[o][i], col[i]);
+            }
+        }
+    }
+
+    #[test]
+    fn jit_is_close_to_interpreter_with_transcendentals(choices in prop::collection::vec((0u8..12, any::<u32>(), any::<u32>()), 1..32),
+                                      n in 0usize..40, pts in any::<u64>(), opt in any::<u8>()) {
+        let prog = smooth_program(&choices);
+        let k = compile_with(&prog, &options(opt)).unwrap();
+        let (u, v, p, _) = points(pts, n, prog.num_params, 0, false);
+        let got = run_jit(&k, &p, &u, &v, &[]);
+        let want = interp::eval(&prog, &p, &interp::Batch { u: &u, v: &v, seeds: &[] });
+        for (o, col) in want.iter().enumerate() {
+            for i in 0..n {
+                prop_assert!((got[o][i] - col[i]).abs() <= 1e-4,
+                    "output {o} point {i}: jit {} interp {} (diff {:e})", got[o][i], col[i], (got[o][i] - col[i]).abs());
+            }
+        }
+    }
+}
+
+/// A random program every node of which stays in [-1, 1] for inputs in [-1, 1], built from
+/// compositions with derivatives bounded by about 1 (no division by values near zero, logs
+/// and pows of arguments bounded away from zero, atan2 away from the origin), so
+/// approximation errors cannot be amplified much.
+fn smooth_program(choices: &[(u8, u32, u32)]) -> Program {
+    let mut b = Builder::new();
+    let mut pool: Vec<NodeId> = vec![b.u(), b.v(), b.param(0), b.param(1)];
+    for &(kind, x, y) in choices {
+        let a = pool[x as usize % pool.len()];
+        let c = pool[y as usize % pool.len()];
+        let two = b.constant(2.0);
+        let half = b.constant(0.5);
+        let node = match kind {
+            0 => b.sin(a),
+            1 => b.cos(a),
+            2 => {
+                let e = b.exp(a);
+                b.scale(0.36, e)
+            }
+            3 => {
+                let aa = b.mul(a, a);
+                let s = b.add(two, aa);
+                let l = b.log(s);
+                b.scale(0.9, l)
+            }
+            4 => {
+                let x = b.add(two, c);
+                let t = b.atan2(a, x);
+                b.scale(0.9, t)
+            }
+            5 => {
+                let base = b.add(two, a);
+                let e = b.mul(half, c);
+                let p = b.pow(base, e);
+                b.mul(half, p)
+            }
+            6 => b.mul(a, c),
+            7 => {
+                let s = b.add(a, c);
+                b.mul(half, s)
+            }
+            8 => {
+                let s = b.sub(a, c);
+                b.mul(half, s)
+            }
+            9 => b.min(a, c),
+            10 => b.max(a, c),
+            _ => {
+                let t = b.add(two, a);
+                let s = b.sqrt(t);
+                b.mul(half, s)
+            }
+        };
+        pool.push(node);
+    }
+    let outputs = pool.iter().rev().take(3).enumerate().map(|(k, &node)| Output { name: format!("o{k}"), node }).collect();
+    b.finish(outputs)
+}

@@ -1,0 +1,132 @@
+//! Shared helpers for the JIT tests: random programs, random points, comparisons.
+#![allow(dead_code)]
+
+use psc_compiler::ir::{Builder, NodeId, Op, Output, Program};
+
+/// A tiny deterministic PRNG (splitmix64), so point sets are reproducible from a proptest seed.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [lo, hi).
+    pub fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
+        let t = (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
+        lo + (hi - lo) * t
+    }
+    /// A mix of ordinary, large, tiny and special values.
+    pub fn nasty(&mut self) -> f32 {
+        match self.next_u64() % 16 {
+            0 => 0.0,
+            1 => -0.0,
+            2 => f32::NAN,
+            3 => f32::INFINITY,
+            4 => f32::NEG_INFINITY,
+            5 => 1e-40,
+            6 => self.uniform(-1e6, 1e6),
+            7 => self.uniform(-200.0, 200.0),
+            8 => (self.next_u64() % 21) as f32 - 10.0,
+            _ => self.uniform(-4.0, 4.0),
+        }
+    }
+}
+
+/// Which ops a random program may use.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub enum OpSet {
+    /// Every op.
+    All,
+    /// Every op except sin, cos, exp, log, pow, atan2.
+    Exact,
+}
+
+const TRANSCENDENTAL: [usize; 6] = [4, 5, 6, 7, 14, 15];
+
+/// Builds a random DAG: `spec` entries are (op kind, operand picks); `consts` seed the leaves.
+pub fn random_program(spec: &[(u8, u32, u32, u32)], consts: &[f32], num_seeds: u32, outs: &[u32], set: OpSet) -> Program {
+    let mut b = Builder::new();
+    let mut pool: Vec<NodeId> = vec![b.u(), b.v(), b.param(0), b.param(1), b.param(2)];
+    for s in 0..num_seeds {
+        pool.push(b.seed(s));
+    }
+    for &c in consts {
+        pool.push(b.constant(c));
+    }
+    for &(kind, x, y, z) in spec {
+        let mut kind = kind as usize % 22;
+        if set == OpSet::Exact && TRANSCENDENTAL.contains(&kind) {
+            kind = [0, 1, 2, 3, 8, 9][kind % 6];
+        }
+        let pick = |k: u32| pool[k as usize % pool.len()];
+        let (a, c, d) = (pick(x), pick(y), pick(z));
+        let op = match kind {
+            0 => Op::Neg(a),
+            1 => Op::Abs(a),
+            2 => Op::Floor(a),
+            3 => Op::Sqrt(a),
+            4 => Op::Sin(a),
+            5 => Op::Cos(a),
+            6 => Op::Exp(a),
+            7 => Op::Log(a),
+            8 => Op::Add(a, c),
+            9 => Op::Sub(a, c),
+            10 => Op::Mul(a, c),
+            11 => Op::Div(a, c),
+            12 => Op::Min(a, c),
+            13 => Op::Max(a, c),
+            14 => Op::Pow(a, c),
+            15 => Op::Atan2(a, c),
+            16 => Op::Hash(a, c),
+            17 => Op::Lt(a, c),
+            18 => Op::Le(a, c),
+            19 => Op::Eq(a, c),
+            20 => Op::Select(a, c, d),
+            _ => Op::Mul(a, a),
+        };
+        let id = b.push(op);
+        pool.push(id);
+    }
+    let n = pool.len() as u32;
+    let mut outputs: Vec<Output> = outs
+        .iter()
+        .enumerate()
+        .map(|(k, &o)| Output { name: format!("o{k}"), node: pool[(n - 1 - o % n.min(6)) as usize] })
+        .collect();
+    // Always also expose the last node, the deepest one.
+    outputs.push(Output { name: "last".into(), node: *pool.last().unwrap() });
+    b.reserve_params(3);
+    b.finish(outputs)
+}
+
+/// Equal bits, or both NaN (payloads differ between paths), or both zero (`max(-0, 0)` may
+/// return either zero, so `sqrt(max(x, 0))` may too).
+pub fn same(a: f32, b: f32) -> bool {
+    a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()) || (a == 0.0 && b == 0.0)
+}
+
+/// Strictly equal bits, or both NaN.
+pub fn same_bits(a: f32, b: f32) -> bool {
+    a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
+}
+
+/// Runs a compiled kernel over columns, returning the output columns.
+pub fn run_jit(k: &psc_jit::CompiledKernel, params: &[f32], u: &[f32], v: &[f32], seeds: &[Vec<f32>]) -> Vec<Vec<f32>> {
+    let n = u.len();
+    let mut outs = vec![vec![0.0f32; n]; k.num_outputs()];
+    let seed_refs: Vec<&[f32]> = seeds.iter().map(|s| &s[..]).collect();
+    let mut out_refs: Vec<&mut [f32]> = outs.iter_mut().map(|c| &mut c[..]).collect();
+    k.run(params, u, v, &seed_refs, &mut out_refs).expect("shapes are right");
+    outs
+}
+
+/// Resident set size of this process in bytes.
+pub fn rss_bytes() -> u64 {
+    let statm = std::fs::read_to_string("/proc/self/statm").expect("Linux /proc");
+    let pages: u64 = statm.split_whitespace().nth(1).unwrap().parse().unwrap();
+    pages * 4096
+}
