@@ -64,6 +64,13 @@ pub struct Args {
     lights: Option<PathBuf>,
     #[arg(long, value_enum, default_value_t = Materials::Mtl)]
     materials: Materials,
+    /// Procedural materials: a JSON file assigning library graphs (with parameters and uv
+    /// transforms) to parts; parts it does not name keep the --materials choice.
+    #[arg(long)]
+    assign: Option<PathBuf>,
+    /// Graph library folder for --assign (default: this checkout's graphs/).
+    #[arg(long, requires = "assign")]
+    lib: Option<PathBuf>,
     #[arg(long, value_enum, default_value_t = Geometry::Model)]
     geometry: Geometry,
     #[arg(long, default_value_t = 0)]
@@ -127,10 +134,15 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     let (width, height) = args.size.unwrap_or(default_size);
     let camera = Camera::new(&spec, width, height, &context)?;
 
-    let materials = match args.materials {
+    let mut materials = match args.materials {
         Materials::Mtl => scene.mtl_materials(&mut warnings),
         Materials::Truth => truth::truth_materials(&scene, &mut warnings)?,
     };
+    if let Some(assign) = &args.assign {
+        let root = args.lib.clone().unwrap_or_else(psc_runtime::library::default_library_root);
+        let library = psc_runtime::library::Library::load(&root)?;
+        psc_runtime::assign::apply_assignment(assign, &library, &scene.mesh.part_names, &mut materials)?;
+    }
     let radiances = LightRadiances::resolve(&scene, args.lights.as_deref(), &mut warnings)?;
     for w in &warnings {
         eprintln!("warning: {w}");

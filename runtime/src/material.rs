@@ -2,6 +2,7 @@
 
 use std::sync::Arc;
 
+use psc_compiler::CHANNELS;
 use psc_render::material::{SurfaceMaterial, SurfaceSample};
 
 use crate::library::Material;
@@ -38,24 +39,34 @@ fn sample_at(channels: &[Vec<f32>], k: usize) -> SurfaceSample {
 }
 
 impl SurfaceMaterial for ProceduralMaterial {
+    /// One hit: the JIT kernel called directly on stack buffers (no allocation, no thread
+    /// pool), since the path tracer shades one hit at a time.
     fn eval(&self, uv: [f32; 2]) -> SurfaceSample {
-        let mut out = [SurfaceSample::default()];
-        self.eval_batch(&[uv], &mut out);
-        out[0]
+        let mut columns = [[0.0f32; 1]; CHANNELS.len()];
+        let mut outputs: Vec<&mut [f32]> = columns.iter_mut().map(|c| &mut c[..]).collect();
+        match self.material.kernel.forward_jit().run(&self.params, &[uv[0]], &[uv[1]], &[], &mut outputs) {
+            Ok(()) => {
+                let c = |i: usize| columns[i][0];
+                SurfaceSample { albedo: [c(0), c(1), c(2)], roughness: c(3), normal: [c(4), c(5), c(6)] }
+            }
+            Err(_) => SHAPE_ERROR_SAMPLE,
+        }
     }
 
     fn eval_batch(&self, uvs: &[[f32; 2]], out: &mut [SurfaceSample]) {
         let u: Vec<f32> = uvs.iter().map(|p| p[0]).collect();
         let v: Vec<f32> = uvs.iter().map(|p| p[1]).collect();
-        // The kernel validates shapes; params were validated at construction, so an error here
-        // is a bug. Shade it a loud magenta rather than abort a long render.
         match self.material.kernel.eval(&self.params, &u, &v) {
             Ok(channels) => {
                 for (k, o) in out.iter_mut().enumerate() {
                     *o = sample_at(&channels, k);
                 }
             }
-            Err(_) => out.fill(SurfaceSample { albedo: [1.0, 0.0, 1.0], roughness: 1.0, normal: [0.0, 0.0, 1.0] }),
+            Err(_) => out.fill(SHAPE_ERROR_SAMPLE),
         }
     }
 }
+
+/// Parameters are validated at construction, so a kernel shape error is a bug: shade it a loud
+/// magenta rather than abort a long render.
+const SHAPE_ERROR_SAMPLE: SurfaceSample = SurfaceSample { albedo: [1.0, 0.0, 1.0], roughness: 1.0, normal: [0.0, 0.0, 1.0] };
