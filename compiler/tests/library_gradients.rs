@@ -29,7 +29,7 @@ use support::*;
 /// - `granite` (odd `grain` only): `granite_grains` (std/stone.psg) samples its third layer
 ///   with `value_noise_lattice(p * f * 0.5, vec2(f, f) * 0.5, …)`, whose period f/2 is not an
 ///   integer for odd f; e.g. grain = 91 mismatches at most points.
-const KNOWN_NOT_TILING: &[&str] = &["oak_grain", "granite"];
+const KNOWN_NOT_TILING: &[&str] = &[];
 
 /// Graphs whose adjoint is known to disagree with finite differences (none).
 const KNOWN_BAD_GRADIENTS: &[&str] = &[];

@@ -31,11 +31,7 @@ const NOT_PERIODIC_BY_DESIGN: &[(&str, &str)] = &[
 
 /// Fns whose tiling fails although they are meant to tile: reported to the library owner.
 /// KNOWN FAILURES: listed ones are checked and reported but do not fail the test.
-const KNOWN_NOT_TILING: &[(&str, &str)] = &[(
-    "granite_grains",
-    "its third layer is value_noise_lattice(p * f * 0.5, vec2(f, f) * 0.5, …): the period f/2 is not an integer for odd \
-     f = floor(size), so it does not tile for odd sizes (graph granite with an odd `grain`)",
-)];
+const KNOWN_NOT_TILING: &[(&str, &str)] = &[];
 
 struct StdFn {
     module: String,

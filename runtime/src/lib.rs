@@ -9,3 +9,5 @@ pub mod kernel;
 pub mod library;
 pub mod material;
 pub mod assign;
+pub mod bake;
+pub mod sheet;
