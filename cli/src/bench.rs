@@ -1,12 +1,392 @@
-//! `psc bench`.
+//! `psc bench`: JIT against interpreter, forward and forward+adjoint, on a size×size grid.
+//!
+//! Until the graph front end is wired in, it benchmarks a built-in synthetic workload (a
+//! seeded random material-like program of about `--synthetic` ops). [`bench_program`] is the
+//! entry point for real graphs. Timings are the best of `--runs` runs (a shared machine is
+//! noisy); both the JIT and the interpreter run on all rayon threads over the same chunks.
 
 use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use psc_compiler::diff::reverse;
+use psc_compiler::interp;
+use psc_compiler::ir::{Builder, NodeId, Output, Program};
+use psc_jit::{CompiledKernel, OptLevel, Options};
+use psc_runtime::kernel::{grid_uv, Kernel, CHUNK};
+use rayon::prelude::*;
 
 use crate::Failure;
 
 #[derive(clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Grid side: size×size texels per evaluation.
+    #[arg(long, default_value_t = 512)]
+    pub size: usize,
+    /// Ops in the synthetic workload.
+    #[arg(long, default_value_t = 300)]
+    pub synthetic: usize,
+    /// Seed of the synthetic workload generator.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Timed runs per measurement; the best is reported.
+    #[arg(long, default_value_t = 3)]
+    pub runs: usize,
+    /// Also compare code generation variants (cranelift opt level × vectors per iteration).
+    #[arg(long)]
+    pub variants: bool,
+}
 
-pub fn run(_args: Args) -> Result<ExitCode, Failure> {
-    Err(Failure("`psc bench` is not built yet".into()))
+/// One benchmarked program.
+#[derive(Clone, Debug)]
+pub struct BenchRow {
+    pub name: String,
+    pub ops: usize,
+    pub adjoint_ops: Option<usize>,
+    pub compile: Duration,
+    pub adjoint_compile: Option<Duration>,
+    /// Best times for one size×size evaluation.
+    pub jit_forward: Duration,
+    pub interp_forward: Duration,
+    pub jit_adjoint: Option<Duration>,
+    pub interp_adjoint: Option<Duration>,
+    pub texels: usize,
+    /// Floating-point operations per texel of the forward kernel (FMA = 2).
+    pub flops_per_texel: usize,
+}
+
+impl BenchRow {
+    fn mtexels(&self, t: Duration) -> f64 {
+        self.texels as f64 / t.as_secs_f64() / 1e6
+    }
+    pub fn forward_gflops(&self) -> f64 {
+        (self.flops_per_texel * self.texels) as f64 / self.jit_forward.as_secs_f64() / 1e9
+    }
+}
+
+pub fn run(args: Args) -> Result<ExitCode, Failure> {
+    if args.size == 0 || args.runs == 0 {
+        return Err(Failure("--size and --runs must be at least 1".into()));
+    }
+    let forward = synthetic_program(args.synthetic, args.seed);
+    let wrt: Vec<u32> = (0..forward.num_params as u32).collect();
+    let adjoint = reverse::adjoint(&forward, &wrt);
+    let name = format!("synthetic-{}#{}", args.synthetic, args.seed);
+    let row = bench_program_runs(&name, &forward, Some(&adjoint), args.size, args.runs)?;
+    print_table(&[row], args.size);
+    if args.variants {
+        print_variants("forward", &forward, args.size, args.runs)?;
+        print_variants("forward+adjoint", &adjoint, args.size, args.runs)?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Benchmarks one program (and its adjoint, if given) with 3 runs per measurement: the entry
+/// point for real graphs once the front end is wired into `psc bench`.
+#[allow(dead_code)]
+pub fn bench_program(name: &str, forward: &Program, adjoint: Option<&Program>, size: usize) -> Result<BenchRow, Failure> {
+    bench_program_runs(name, forward, adjoint, size, 3)
+}
+
+fn bench_program_runs(name: &str, forward: &Program, adjoint: Option<&Program>, size: usize, runs: usize) -> Result<BenchRow, Failure> {
+    let kernel = match adjoint {
+        Some(a) => Kernel::with_adjoint(forward.clone(), a.clone())?,
+        None => Kernel::new(forward.clone())?,
+    };
+    let (u, v) = grid_uv(size, size)?;
+    let params = bench_params(forward.num_params);
+    let n = u.len();
+
+    let jit_forward = best_of(runs, || kernel.eval(&params, &u, &v).map(drop))?;
+    let interp_forward = best_of(runs, || {
+        interp_chunked(forward, &params, &u, &v, &[]);
+        Ok::<_, Failure>(())
+    })?;
+    let (mut jit_adjoint, mut interp_adjoint) = (None, None);
+    if let Some(adj) = adjoint {
+        let seeds: Vec<Vec<f32>> = (0..forward.outputs.len()).map(|o| vec![1.0 / (o + 1) as f32; n]).collect();
+        let seed_refs: Vec<&[f32]> = seeds.iter().map(|s| &s[..]).collect();
+        jit_adjoint = Some(best_of(runs, || kernel.adjoint(&params, &u, &v, &seed_refs).map(drop))?);
+        interp_adjoint = Some(best_of(runs, || {
+            interp_chunked(adj, &params, &u, &v, &seed_refs);
+            Ok::<_, Failure>(())
+        })?);
+    }
+    Ok(BenchRow {
+        name: name.to_string(),
+        ops: forward.op_count(),
+        adjoint_ops: adjoint.map(Program::op_count),
+        compile: kernel.forward_jit().compile_time(),
+        adjoint_compile: kernel.adjoint_jit().map(CompiledKernel::compile_time),
+        jit_forward,
+        interp_forward,
+        jit_adjoint,
+        interp_adjoint,
+        texels: n,
+        flops_per_texel: kernel.forward_jit().flops_per_point(),
+    })
+}
+
+/// Deterministic, unremarkable parameter values.
+fn bench_params(n: usize) -> Vec<f32> {
+    (0..n).map(|i| 0.3 + 0.37 * ((i * 7) % 11) as f32 / 11.0).collect()
+}
+
+fn best_of<E>(runs: usize, mut f: impl FnMut() -> Result<(), E>) -> Result<Duration, E> {
+    let mut best = Duration::MAX;
+    for _ in 0..runs {
+        let t = Instant::now();
+        f()?;
+        best = best.min(t.elapsed());
+    }
+    Ok(best)
+}
+
+/// The interpreter over the same parallel chunks as the kernel layer; results discarded.
+fn interp_chunked(program: &Program, params: &[f32], u: &[f32], v: &[f32], seeds: &[&[f32]]) {
+    (0..u.len().div_ceil(CHUNK)).into_par_iter().for_each(|c| {
+        let r = c * CHUNK..((c + 1) * CHUNK).min(u.len());
+        let s: Vec<&[f32]> = seeds.iter().map(|col| &col[r.clone()]).collect();
+        let out = interp::eval(program, params, &interp::Batch { u: &u[r.clone()], v: &v[r], seeds: &s });
+        std::hint::black_box(out);
+    });
+}
+
+/// Nominal peak: cores × 4 lanes × 2 flops per FMA × 1 FMA issued per cycle × clock.
+fn nominal_peak() -> Option<(f64, usize, f64)> {
+    let info = std::fs::read_to_string("/proc/cpuinfo").ok()?;
+    let mhz: f64 = info.lines().find(|l| l.starts_with("cpu MHz"))?.split(':').nth(1)?.trim().parse().ok()?;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    Some((cores as f64 * 4.0 * 2.0 * mhz / 1e3, cores, mhz / 1e3))
+}
+
+fn ms(t: Duration) -> String {
+    format!("{:.1}", t.as_secs_f64() * 1e3)
+}
+
+pub fn print_table(rows: &[BenchRow], size: usize) {
+    let threads = rayon::current_num_threads();
+    println!("psc bench: {size}x{size} texels, best of several runs, {threads} rayon threads for JIT and interpreter alike");
+    println!(
+        "{:<20} {:>6} {:>7} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>7} {:>8} {:>9} {:>7}",
+        "program", "ops", "adj ops", "compile", "JIT fwd", "interp", "JIT/int", "JIT f+a", "interp", "JIT/int", "f+a/fwd", "flop/tex", "GFLOP/s"
+    );
+    println!(
+        "{:<20} {:>6} {:>7} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>7} {:>8} {:>9} {:>7}",
+        "", "", "", "ms f/a", "Mtex/s", "Mtex/s", "fwd", "Mtex/s", "Mtex/s", "f+a", "time", "", ""
+    );
+    for r in rows {
+        let (jf, inf) = (r.mtexels(r.jit_forward), r.mtexels(r.interp_forward));
+        let compile = match r.adjoint_compile {
+            Some(a) => format!("{}/{}", ms(r.compile), ms(a)),
+            None => ms(r.compile),
+        };
+        let (ja, ia, ra, fa) = match (r.jit_adjoint, r.interp_adjoint) {
+            (Some(j), Some(i)) => (
+                format!("{:.1}", r.mtexels(j)),
+                format!("{:.2}", r.mtexels(i)),
+                format!("{:.1}x", i.as_secs_f64() / j.as_secs_f64()),
+                format!("{:.2}x", j.as_secs_f64() / r.jit_forward.as_secs_f64()),
+            ),
+            _ => ("-".into(), "-".into(), "-".into(), "-".into()),
+        };
+        println!(
+            "{:<20} {:>6} {:>7} {:>9} {:>9.1} {:>9.2} {:>8.1}x {:>9} {:>7} {:>7} {:>8} {:>9} {:>7.1}",
+            r.name,
+            r.ops,
+            r.adjoint_ops.map_or("-".into(), |n| n.to_string()),
+            compile,
+            jf,
+            inf,
+            jf / inf,
+            ja,
+            ia,
+            ra,
+            fa,
+            r.flops_per_texel,
+            r.forward_gflops()
+        );
+    }
+    match nominal_peak() {
+        Some((peak, cores, ghz)) => {
+            let best = rows.iter().map(BenchRow::forward_gflops).fold(0.0, f64::max);
+            println!(
+                "nominal peak {peak:.1} GFLOP/s = {cores} cores x 4 lanes x 2 flops/FMA x {ghz:.2} GHz (nominal clock from /proc/cpuinfo); best forward reaches {:.0}% of it",
+                100.0 * best / peak
+            );
+        }
+        None => println!("nominal peak unknown (no cpu MHz in /proc/cpuinfo)"),
+    }
+}
+
+/// Throughput of each code generation variant, on the same chunks as the kernel layer.
+fn print_variants(what: &str, program: &Program, size: usize, runs: usize) -> Result<(), Failure> {
+    let (u, v) = grid_uv(size, size)?;
+    let params = bench_params(program.num_params);
+    let seeds: Vec<Vec<f32>> = (0..program.num_seeds).map(|_| vec![0.5; u.len()]).collect();
+    println!("code generation variants ({what}, {} ops):", program.op_count());
+    for opt_level in [OptLevel::None, OptLevel::Speed] {
+        for groups in [1, 2, 4] {
+            let k = psc_jit::compile_with(program, &Options { opt_level, groups })?;
+            let mut outs = vec![vec![0.0f32; u.len()]; k.num_outputs()];
+            let t = best_of(runs, || {
+                let mut work: Vec<Vec<&mut [f32]>> = (0..u.len().div_ceil(CHUNK)).map(|_| Vec::new()).collect();
+                for col in outs.iter_mut() {
+                    for (c, piece) in col.chunks_mut(CHUNK).enumerate() {
+                        work[c].push(piece);
+                    }
+                }
+                work.into_par_iter().enumerate().try_for_each(|(c, mut o)| {
+                    let r = c * CHUNK..((c + 1) * CHUNK).min(u.len());
+                    let s: Vec<&[f32]> = seeds.iter().map(|col| &col[r.clone()]).collect();
+                    k.run(&params, &u[r.clone()], &v[r], &s, &mut o)
+                })
+            })?;
+            println!(
+                "  opt_level={:<5} vectors/iter={groups}: {:>8.1} Mtexels/s  compile {:>7} ms",
+                format!("{opt_level:?}").to_lowercase(),
+                u.len() as f64 / t.as_secs_f64() / 1e6,
+                ms(k.compile_time())
+            );
+        }
+    }
+    Ok(())
+}
+
+/// splitmix64: a small deterministic generator, so workloads are reproducible by seed.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n as u64) as usize
+    }
+    fn unit(&mut self) -> f32 {
+        (self.next() >> 40) as f32 / (1u64 << 24) as f32
+    }
+}
+
+/// A seeded random material-like program of about `ops` IR ops: mostly arithmetic, with
+/// the mix of transcendentals, comparisons, selects and hashes procedural graphs use; every
+/// argument is shaped so values stay finite (exp of negatives, log of 1 + x², …).
+pub fn synthetic_program(ops: usize, seed: u64) -> Program {
+    // Dead code is removed at the end; generate until what survives has `ops` ops.
+    let mut raw = ops;
+    loop {
+        let prog = synthetic_attempt(raw, seed);
+        if prog.op_count() >= ops || raw > ops * 4 {
+            return prog;
+        }
+        raw += raw / 8 + 1;
+    }
+}
+
+fn synthetic_attempt(raw: usize, seed: u64) -> Program {
+    let mut r = Rng(seed ^ 0x5053_4342_454E_4348);
+    let mut b = Builder::new();
+    let mut pool: Vec<NodeId> = vec![b.u(), b.v()];
+    for p in 0..8 {
+        pool.push(b.param(p));
+    }
+    for _ in 0..4 {
+        let c = b.constant((r.unit() * 8.0 - 4.0).round() / 2.0 + 0.25);
+        pool.push(c);
+    }
+    let leaves = b.len();
+    // Prefer recent nodes so the program has depth, like chained graph nodes.
+    let pick = |r: &mut Rng, pool: &[NodeId]| pool[pool.len() - 1 - r.below(pool.len().min(24))];
+    let mut guard = 0;
+    while b.len() - leaves < raw && guard < raw * 20 {
+        guard += 1;
+        let (x, y, z) = (pick(&mut r, &pool), pick(&mut r, &pool), pick(&mut r, &pool));
+        let one = b.constant(1.0);
+        let node = match r.below(100) {
+            0..=19 => b.add(x, y),
+            20..=31 => b.sub(x, y),
+            32..=51 => b.mul(x, y),
+            52..=57 => b.sin(x),
+            58..=61 => b.cos(x),
+            62..=64 => {
+                let a = b.abs(x);
+                let n = b.neg(a);
+                b.exp(n)
+            }
+            65..=67 => {
+                let s = b.mul(x, x);
+                let t = b.add(one, s);
+                b.log(t)
+            }
+            68..=69 => {
+                let a = b.abs(x);
+                let t = b.add(one, a);
+                let e = b.sin(y);
+                b.pow(t, e)
+            }
+            70..=71 => b.atan2(x, y),
+            72..=74 => b.fract(x),
+            75..=76 => {
+                let s = b.scale(16.0, x);
+                b.hash(s, y)
+            }
+            77..=80 => b.min(x, y),
+            81..=84 => b.max(x, y),
+            85..=88 => {
+                let c = b.lt(x, y);
+                b.select(c, y, z)
+            }
+            89..=92 => {
+                let a = b.abs(x);
+                b.sqrt(a)
+            }
+            93..=95 => {
+                let d = b.mul(y, y);
+                let d = b.add(one, d);
+                b.div(x, d)
+            }
+            _ => b.scale(0.5, x),
+        };
+        // Renormalise now and then, as graphs do with mix/clamp, so magnitudes stay sane:
+        // a soft clamp x / (1 + |x|) or a periodic remap.
+        let node = match r.below(6) {
+            0 | 1 => {
+                let a = b.abs(node);
+                let d = b.add(one, a);
+                b.div(node, d)
+            }
+            2 => b.sin(node),
+            _ => node,
+        };
+        pool.push(node);
+    }
+    let names = ["albedo.r", "albedo.g", "albedo.b", "roughness", "height"];
+    let outputs = names.iter().enumerate().map(|(k, name)| Output { name: (*name).into(), node: pool[pool.len() - 1 - 3 * k] }).collect();
+    let mut prog = b.finish(outputs);
+    prog.eliminate_dead_code();
+    prog
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn synthetic_workload_is_deterministic_valid_and_finite() {
+        let a = synthetic_program(300, 7);
+        assert_eq!(a, synthetic_program(300, 7));
+        assert_ne!(a, synthetic_program(300, 8));
+        for seed in 1..6 {
+            let a = synthetic_program(300, seed);
+            assert!(a.op_count() >= 300, "{} ops", a.op_count());
+            a.validate().unwrap();
+            let (u, v) = grid_uv(32, 32).unwrap();
+            let out = Kernel::new(a.clone()).unwrap().eval(&bench_params(a.num_params), &u, &v).unwrap();
+            // NaN/inf (and their slow paths) would make the benchmark unrepresentative.
+            assert!(out.iter().flatten().all(|x| x.is_finite()), "seed {seed}: the workload should stay finite");
+        }
+    }
 }

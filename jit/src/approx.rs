@@ -70,8 +70,12 @@ fn cos_poly<A: Arith>(a: &mut A, z: A::F) -> A::F {
 /// sin(x) when `quarter_turns == 0`, cos(x) when it is 1.
 fn sin_cos<A: Arith>(a: &mut A, x: A::F, quarter_turns: i32) -> A::F {
     let (r, q) = reduce_half_pi(a, x);
-    let shift = a.i(quarter_turns);
-    let q = a.iadd(q, shift);
+    let q = if quarter_turns == 0 {
+        q
+    } else {
+        let shift = a.i(quarter_turns);
+        a.iadd(q, shift)
+    };
     let z = a.mul(r, r);
     let s = sin_poly(a, r, z);
     let c = cos_poly(a, z);
