@@ -109,7 +109,7 @@ fn compile(input: Input, options: &Options) -> CompileOutput {
                 match lower::lower_graph(&set, id, g) {
                     Ok(compiled) => graphs.push(compiled),
                     Err(d) => {
-                        diagnostics.push(d);
+                        diagnostics.push(*d);
                         ok = false;
                     }
                 }

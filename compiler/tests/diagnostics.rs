@@ -19,7 +19,7 @@ fn every_ui_case_reports_errors_and_matches_its_snapshot() {
     assert!(cases.len() >= 10, "the ui cases are missing");
     for case in cases {
         let name = case.file_stem().unwrap().to_string_lossy().into_owned();
-        let out = compile_files(&[case.clone()], &Options { lib_root: Some(library_root()) });
+        let out = compile_files(std::slice::from_ref(&case), &Options { lib_root: Some(library_root()) });
         assert!(out.has_errors(), "{name}: expected at least one error");
         assert!(out.graphs.is_empty(), "{name}: a file with errors must not produce graphs");
         // Paths differ between machines; show them relative to the ui folder.

@@ -67,7 +67,8 @@ impl Value {
     }
 }
 
-type Lowered<T> = Result<T, Diagnostic>;
+/// Boxed: lowering errors are rare, and the happy path should not carry their size.
+type Lowered<T> = Result<T, Box<Diagnostic>>;
 
 /// The names a graph body binds, with node values computed on first use.
 struct GraphEnv {
@@ -104,14 +105,15 @@ impl<'a> Lowerer<'a> {
         }
     }
 
-    fn error(&self, span: Span, message: impl Into<String>) -> Diagnostic {
-        Diagnostic::error(self.file, span, message)
+    fn error(&self, span: Span, message: impl Into<String>) -> Box<Diagnostic> {
+        Box::new(Diagnostic::error(self.file, span, message))
     }
 
     fn check_size(&self, span: Span) -> Lowered<()> {
         if self.b.len() > MAX_IR_NODES {
-            return Err(self.error(span, format!("the graph grows past {MAX_IR_NODES} IR nodes here"))
-                .with_hint("reduce loop counts, octaves or blur taps"));
+            let mut e = self.error(span, format!("the graph grows past {MAX_IR_NODES} IR nodes here"));
+            e.hint = Some("reduce loop counts, octaves or blur taps".into());
+            return Err(e);
         }
         Ok(())
     }
@@ -126,7 +128,7 @@ pub fn const_value(set: &ModuleSet, module: ModuleId, e: &ast::Expr) -> Option<V
 }
 
 /// Lowers one checked graph to its forward program.
-pub fn lower_graph(set: &ModuleSet, module: ModuleId, g: &ast::GraphDef) -> Result<CompiledGraph, Diagnostic> {
+pub fn lower_graph(set: &ModuleSet, module: ModuleId, g: &ast::GraphDef) -> Result<CompiledGraph, Box<Diagnostic>> {
     let started = Instant::now();
     let mut l = Lowerer::new(set, module);
     let mut params = Vec::new();
