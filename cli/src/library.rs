@@ -1,123 +1,105 @@
-//! `psc library`.
+//! `psc library [--sheet sheet.png]`: compiles the whole graph library, lists its graphs with
+//! their sizes, optionally times a bake of each and writes a contact sheet (every graph at its
+//! defaults and a few random variants, lit, with its name).
 
+use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Instant;
+
+use psc_runtime::bake::{self, Rng};
+use psc_runtime::library::{default_library_root, Library};
+use psc_runtime::sheet::{self, Cell};
 
 use crate::Failure;
 
 #[derive(clap::Args)]
-pub struct Args {}
-
-pub fn run(_args: Args) -> Result<ExitCode, Failure> {
-    Err(Failure("`psc library` is not built yet".into()))
+pub struct Args {
+    /// Library root (default: the shipped graphs/ folder).
+    #[arg(long)]
+    pub lib: Option<PathBuf>,
+    /// Write a contact sheet to this PNG.
+    #[arg(long)]
+    pub sheet: Option<PathBuf>,
+    /// Size of each sample on the sheet, in pixels.
+    #[arg(long, default_value_t = 160)]
+    pub size: usize,
+    /// Random variants per graph on the sheet, besides the defaults.
+    #[arg(long, default_value_t = 3)]
+    pub variants: usize,
+    /// Seed of the random variants.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Graphs per sheet row (each graph takes 1 + variants cells).
+    #[arg(long, default_value_t = 2)]
+    pub per_row: usize,
+    /// Also time a bake of every graph at this size (e.g. 2048) and report the slowest.
+    #[arg(long)]
+    pub bench: Option<usize>,
+    /// Only graphs whose name or category contains one of these (comma-separated).
+    #[arg(long)]
+    pub only: Option<String>,
 }
 
-// The real command, ready: it needs `pub mod bake; pub mod sheet;` in runtime/src/lib.rs
-// (see graphs/COMPILER_NOTES.md). To enable it, delete the stub above and this wrapper.
-#[cfg(any())]
-mod ready {
-    //! `psc library [--sheet sheet.png]`: compiles the whole graph library, lists its graphs with
-    //! their sizes, optionally times a bake of each and writes a contact sheet (every graph at its
-    //! defaults and a few random variants, lit, with its name).
-
-    use std::path::PathBuf;
-    use std::process::ExitCode;
-    use std::time::Instant;
-
-    use psc_runtime::bake::{self, Rng};
-    use psc_runtime::library::{default_library_root, Library};
-    use psc_runtime::sheet::{self, Cell};
-
-    use crate::Failure;
-
-    #[derive(clap::Args)]
-    pub struct Args {
-        /// Library root (default: the shipped graphs/ folder).
-        #[arg(long)]
-        pub lib: Option<PathBuf>,
-        /// Write a contact sheet to this PNG.
-        #[arg(long)]
-        pub sheet: Option<PathBuf>,
-        /// Size of each sample on the sheet, in pixels.
-        #[arg(long, default_value_t = 160)]
-        pub size: usize,
-        /// Random variants per graph on the sheet, besides the defaults.
-        #[arg(long, default_value_t = 3)]
-        pub variants: usize,
-        /// Seed of the random variants.
-        #[arg(long, default_value_t = 7)]
-        pub seed: u64,
-        /// Graphs per sheet row (each graph takes 1 + variants cells).
-        #[arg(long, default_value_t = 2)]
-        pub per_row: usize,
-        /// Also time a bake of every graph at this size (e.g. 2048) and report the slowest.
-        #[arg(long)]
-        pub bench: Option<usize>,
-        /// Only graphs whose name or category contains one of these (comma-separated).
-        #[arg(long)]
-        pub only: Option<String>,
+pub fn run(args: Args) -> Result<ExitCode, Failure> {
+    let root = args.lib.clone().unwrap_or_else(default_library_root);
+    let started = Instant::now();
+    let library = Library::load(&root).map_err(|e| Failure(e.to_string()))?;
+    let filters: Vec<String> = args.only.as_deref().map(|s| s.split(',').map(str::to_string).collect()).unwrap_or_default();
+    let materials: Vec<_> = library
+        .materials
+        .iter()
+        .filter(|m| filters.is_empty() || filters.iter().any(|f| m.graph.info.name.contains(f.as_str()) || m.graph.info.category.contains(f.as_str())))
+        .collect();
+    println!(
+        "{} graphs from {} (front end {:.2} s, JIT {:.2} s, total {:.2} s)",
+        library.materials.len(),
+        root.display(),
+        library.front_end_time.as_secs_f64(),
+        library.jit_time.as_secs_f64(),
+        started.elapsed().as_secs_f64()
+    );
+    println!("{:<26} {:<14} {:>6} {:>6} {:>8}", "graph", "category", "params", "slots", "ops");
+    for m in &materials {
+        let info = &m.graph.info;
+        println!("{:<26} {:<14} {:>6} {:>6} {:>8}", info.name, info.category, info.params.len(), info.num_slots(), m.graph.forward.op_count());
     }
 
-    pub fn run(args: Args) -> Result<ExitCode, Failure> {
-        let root = args.lib.clone().unwrap_or_else(default_library_root);
-        let started = Instant::now();
-        let library = Library::load(&root).map_err(|e| Failure(e.to_string()))?;
-        let filters: Vec<String> = args.only.as_deref().map(|s| s.split(',').map(str::to_string).collect()).unwrap_or_default();
-        let materials: Vec<_> = library
-            .materials
-            .iter()
-            .filter(|m| filters.is_empty() || filters.iter().any(|f| m.graph.info.name.contains(f.as_str()) || m.graph.info.category.contains(f.as_str())))
-            .collect();
-        println!(
-            "{} graphs from {} (front end {:.2} s, JIT {:.2} s, total {:.2} s)",
-            library.materials.len(),
-            root.display(),
-            library.front_end_time.as_secs_f64(),
-            library.jit_time.as_secs_f64(),
-            started.elapsed().as_secs_f64()
-        );
-        println!("{:<26} {:<14} {:>6} {:>6} {:>8}", "graph", "category", "params", "slots", "ops");
+    if let Some(size) = args.bench {
+        let mut times = Vec::new();
+        for m in &materials {
+            let params = m.graph.info.default_params();
+            let t = Instant::now();
+            m.kernel.eval_grid(&params, size, size).map_err(|e| Failure(e.to_string()))?;
+            times.push((t.elapsed().as_secs_f64(), m.graph.info.name.clone()));
+        }
+        times.sort_by(|a, b| b.0.total_cmp(&a.0));
+        println!("bake at {size}² (forward, all channels), slowest first:");
+        for (t, name) in &times {
+            println!("  {name:<26} {t:>7.3} s");
+        }
+    }
+
+    if let Some(path) = &args.sheet {
+        let mut cells = Vec::new();
         for m in &materials {
             let info = &m.graph.info;
-            println!("{:<26} {:<14} {:>6} {:>6} {:>8}", info.name, info.category, info.params.len(), info.num_slots(), m.graph.forward.op_count());
-        }
-
-        if let Some(size) = args.bench {
-            let mut times = Vec::new();
-            for m in &materials {
-                let params = m.graph.info.default_params();
-                let t = Instant::now();
-                m.kernel.eval_grid(&params, size, size).map_err(|e| Failure(e.to_string()))?;
-                times.push((t.elapsed().as_secs_f64(), m.graph.info.name.clone()));
-            }
-            times.sort_by(|a, b| b.0.total_cmp(&a.0));
-            println!("bake at {size}² (forward, all channels), slowest first:");
-            for (t, name) in &times {
-                println!("  {name:<26} {t:>7.3} s");
+            let eval = |p: &[f32], u: &[f32], v: &[f32]| m.kernel.eval(p, u, v).map_err(|e| e.to_string());
+            let mut rng = Rng(args.seed ^ hash_name(&info.name));
+            for k in 0..=args.variants {
+                let params = if k == 0 { info.default_params() } else { bake::random_params(info, &mut rng) };
+                let maps = bake::bake(&eval, &params, args.size).map_err(Failure)?;
+                let label = if k == 0 { info.name.clone() } else { format!("{} #{k}", info.category) };
+                cells.push(Cell { label, maps });
             }
         }
-
-        if let Some(path) = &args.sheet {
-            let mut cells = Vec::new();
-            for m in &materials {
-                let info = &m.graph.info;
-                let eval = |p: &[f32], u: &[f32], v: &[f32]| m.kernel.eval(p, u, v).map_err(|e| e.to_string());
-                let mut rng = Rng(args.seed ^ hash_name(&info.name));
-                for k in 0..=args.variants {
-                    let params = if k == 0 { info.default_params() } else { bake::random_params(info, &mut rng) };
-                    let maps = bake::bake(&eval, &params, args.size).map_err(Failure)?;
-                    let label = if k == 0 { info.name.clone() } else { format!("{} #{k}", info.category) };
-                    cells.push(Cell { label, maps });
-                }
-            }
-            let per_row = args.per_row.max(1) * (args.variants + 1);
-            sheet::write_sheet(path, &cells, per_row).map_err(|e| Failure(format!("cannot write {}: {e}", path.display())))?;
-            println!("contact sheet: {} ({} samples)", path.display(), cells.len());
-        }
-        Ok(ExitCode::SUCCESS)
+        let per_row = args.per_row.max(1) * (args.variants + 1);
+        sheet::write_sheet(path, &cells, per_row).map_err(|e| Failure(format!("cannot write {}: {e}", path.display())))?;
+        println!("contact sheet: {} ({} samples)", path.display(), cells.len());
     }
+    Ok(ExitCode::SUCCESS)
+}
 
-    /// A stable per-graph seed offset, so each graph's variants do not depend on the others.
-    fn hash_name(name: &str) -> u64 {
-        name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x1000_0000_01b3))
-    }
+/// A stable per-graph seed offset, so each graph's variants do not depend on the others.
+fn hash_name(name: &str) -> u64 {
+    name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x1000_0000_01b3))
 }
