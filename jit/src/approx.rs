@@ -18,6 +18,9 @@
 //! Outside the swept range sin/cos stay bounded but lose accuracy (reduction uses a float
 //! quotient); inf/NaN give NaN as in `std`.
 
+// Coefficients are kept as their published decimals (Cephes); the f32 rounding is intended.
+#![allow(clippy::excessive_precision)]
+
 use crate::arith::{Arith, Cmp};
 
 const FRAC_2_PI: f32 = std::f32::consts::FRAC_2_PI;
@@ -88,9 +91,9 @@ fn sin_cos<A: Arith>(a: &mut A, x: A::F, quarter_turns: i32) -> A::F {
     let y = a.sel(even, s, c);
     let half_turn = a.iand(q, two);
     let sign = a.shl(half_turn, 30);
-    let yb = a.bits(y);
+    let yb = a.float_to_bits(y);
     let yb = a.ixor(yb, sign);
-    a.from_bits(yb)
+    a.bits_to_float(yb)
 }
 
 pub fn sin<A: Arith>(a: &mut A, x: A::F) -> A::F {
@@ -143,7 +146,7 @@ fn pow2i<A: Arith>(a: &mut A, k: A::I) -> A::F {
     let bias = a.i(127);
     let e = a.iadd(k, bias);
     let b = a.shl(e, 23);
-    a.from_bits(b)
+    a.bits_to_float(b)
 }
 
 /// ln(x) for x > 0 (normal, subnormal or +inf). Zero, negative and NaN inputs give finite
@@ -158,12 +161,12 @@ pub fn log_positive<A: Arith>(a: &mut A, x: A::F) -> A::F {
     let (m23, zero) = (a.f(-23.0), a.f(0.0));
     let e_adj = a.sel(tiny, m23, zero);
 
-    let bits = a.bits(xn);
+    let bits = a.float_to_bits(xn);
     let mant_mask = a.i(0x007F_FFFF);
     let one_bits = a.i(0x3F80_0000);
     let mb = a.iand(bits, mant_mask);
     let mb = a.ixor(mb, one_bits);
-    let m = a.from_bits(mb); // [1, 2)
+    let m = a.bits_to_float(mb); // [1, 2)
     let eb = a.ushr(bits, 23);
     let bias = a.i(127);
     let ei = a.isub(eb, bias);
@@ -274,11 +277,11 @@ pub fn atan2<A: Arith>(a: &mut A, y: A::F, x: A::F) -> A::F {
     let at = a.sel(left, back, at);
     // Copy y's sign onto the non-negative angle.
     let sign_mask = a.i(i32::MIN);
-    let yb = a.bits(y);
+    let yb = a.float_to_bits(y);
     let ys = a.iand(yb, sign_mask);
-    let ab = a.bits(at);
+    let ab = a.float_to_bits(at);
     let ab = a.ixor(ab, ys);
-    let at = a.from_bits(ab);
+    let at = a.bits_to_float(ab);
     let y0 = a.cmp(Cmp::Eq, y, zero);
     let x0 = a.cmp(Cmp::Eq, x, zero);
     let origin = a.mand(y0, x0);

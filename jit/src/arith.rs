@@ -49,8 +49,8 @@ pub trait Arith {
     fn to_int(&mut self, x: Self::F) -> Self::I;
     /// Signed integer to float, round to nearest.
     fn to_float(&mut self, x: Self::I) -> Self::F;
-    fn bits(&mut self, x: Self::F) -> Self::I;
-    fn from_bits(&mut self, x: Self::I) -> Self::F;
+    fn float_to_bits(&mut self, x: Self::F) -> Self::I;
+    fn bits_to_float(&mut self, x: Self::I) -> Self::F;
 
     fn iadd(&mut self, a: Self::I, b: Self::I) -> Self::I;
     fn isub(&mut self, a: Self::I, b: Self::I) -> Self::I;
@@ -143,10 +143,10 @@ impl Arith for Scalar {
     fn to_float(&mut self, x: i32) -> f32 {
         x as f32
     }
-    fn bits(&mut self, x: f32) -> i32 {
+    fn float_to_bits(&mut self, x: f32) -> i32 {
         x.to_bits() as i32
     }
-    fn from_bits(&mut self, x: i32) -> f32 {
+    fn bits_to_float(&mut self, x: i32) -> f32 {
         f32::from_bits(x as u32)
     }
     fn iadd(&mut self, a: i32, b: i32) -> i32 {
@@ -218,8 +218,8 @@ impl Arith for FlopCounter {
     fn mand(&mut self, _: (), _: ()) {}
     fn to_int(&mut self, _: ()) {}
     fn to_float(&mut self, _: ()) {}
-    fn bits(&mut self, _: ()) {}
-    fn from_bits(&mut self, _: ()) {}
+    fn float_to_bits(&mut self, _: ()) {}
+    fn bits_to_float(&mut self, _: ()) {}
     fn iadd(&mut self, _: (), _: ()) {}
     fn isub(&mut self, _: (), _: ()) {}
     fn imul(&mut self, _: (), _: ()) {}

@@ -201,8 +201,8 @@ fn emit_program(
         };
         if let Some(ks) = outputs_of.get(&i) {
             for &k in ks {
-                for g in 0..groups {
-                    store_column(a, out_cols[k], access, g, vals[i][g]);
+                for (g, &value) in vals[i].iter().enumerate() {
+                    store_column(a, out_cols[k], access, g, value);
                 }
             }
         }
@@ -343,10 +343,10 @@ impl Arith for Lanes<'_, '_> {
     fn to_float(&mut self, x: Value) -> Value {
         self.b.ins().fcvt_from_sint(types::F32X4, x)
     }
-    fn bits(&mut self, x: Value) -> Value {
+    fn float_to_bits(&mut self, x: Value) -> Value {
         self.b.ins().bitcast(types::I32X4, MemFlagsData::new(), x)
     }
-    fn from_bits(&mut self, x: Value) -> Value {
+    fn bits_to_float(&mut self, x: Value) -> Value {
         self.b.ins().bitcast(types::F32X4, MemFlagsData::new(), x)
     }
     fn iadd(&mut self, a: Value, b: Value) -> Value {

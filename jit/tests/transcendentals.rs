@@ -43,7 +43,7 @@ fn max_abs_err(xs: &[f32], got: &[f32], f: impl Fn(f64) -> f64) -> (f64, f32) {
     let mut worst = (0.0, 0.0);
     for (&x, &y) in xs.iter().zip(got) {
         let e = (y as f64 - f(x as f64)).abs();
-        if !(e <= worst.0) {
+        if e > worst.0 || e.is_nan() {
             worst = (e, x);
         }
     }
@@ -55,7 +55,7 @@ fn max_rel_err(xs: &[f32], got: &[f32], f: impl Fn(f64) -> f64) -> (f64, f32) {
     for (&x, &y) in xs.iter().zip(got) {
         let want = f(x as f64);
         let e = ((y as f64 - want) / want).abs();
-        if !(e <= worst.0) {
+        if e > worst.0 || e.is_nan() {
             worst = (e, x);
         }
     }
