@@ -19,6 +19,9 @@ use crate::Failure;
 
 #[derive(clap::Args)]
 pub struct Args {
+    /// .psg files or folders to benchmark (each graph at its defaults); without any, a
+    /// synthetic program is benchmarked.
+    pub paths: Vec<std::path::PathBuf>,
     /// Grid side: size×size texels per evaluation.
     #[arg(long, default_value_t = 512)]
     pub size: usize,
@@ -67,11 +70,15 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     if args.size == 0 || args.runs == 0 {
         return Err(Failure("--size and --runs must be at least 1".into()));
     }
+    if !args.paths.is_empty() {
+        return bench_graphs(&args);
+    }
     let forward = synthetic_program(args.synthetic, args.seed);
     let wrt: Vec<u32> = (0..forward.num_params as u32).collect();
     let adjoint = reverse::adjoint(&forward, &wrt);
     let name = format!("synthetic-{}#{}", args.synthetic, args.seed);
-    let row = bench_program_runs(&name, &forward, Some(&adjoint), args.size, args.runs)?;
+    let params = bench_params(forward.num_params);
+    let row = bench_program_runs(&name, &forward, Some(&adjoint), &params, args.size, args.runs)?;
     print_table(&[row], args.size);
     if args.variants {
         print_variants("forward", &forward, args.size, args.runs)?;
@@ -84,16 +91,41 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
 /// point for real graphs once the front end is wired into `psc bench`.
 #[allow(dead_code)]
 pub fn bench_program(name: &str, forward: &Program, adjoint: Option<&Program>, size: usize) -> Result<BenchRow, Failure> {
-    bench_program_runs(name, forward, adjoint, size, 3)
+    bench_program_runs(name, forward, adjoint, &bench_params(forward.num_params), size, 3)
 }
 
-fn bench_program_runs(name: &str, forward: &Program, adjoint: Option<&Program>, size: usize, runs: usize) -> Result<BenchRow, Failure> {
+/// Every graph of the given files at its default parameters, adjoint over its continuous ones.
+fn bench_graphs(args: &Args) -> Result<ExitCode, Failure> {
+    let files = crate::compile::collect_sources(&args.paths)?;
+    let output = psc_compiler::compile_files(&files, &psc_compiler::Options::default());
+    if output.has_errors() {
+        eprint!("{}", output.render_diagnostics());
+        return Ok(ExitCode::from(1));
+    }
+    let mut rows = Vec::new();
+    for g in &output.graphs {
+        let adjoint = g.adjoint();
+        let params = g.info.default_params();
+        rows.push(bench_program_runs(&g.info.name, &g.forward, Some(&adjoint), &params, args.size, args.runs)?);
+        eprintln!("benchmarked {}", g.info.name);
+    }
+    print_table(&rows, args.size);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn bench_program_runs(
+    name: &str,
+    forward: &Program,
+    adjoint: Option<&Program>,
+    params: &[f32],
+    size: usize,
+    runs: usize,
+) -> Result<BenchRow, Failure> {
     let kernel = match adjoint {
         Some(a) => Kernel::with_adjoint(forward.clone(), a.clone())?,
         None => Kernel::new(forward.clone())?,
     };
     let (u, v) = grid_uv(size, size)?;
-    let params = bench_params(forward.num_params);
     let n = u.len();
 
     let jit_forward = best_of(runs, || kernel.eval(&params, &u, &v).map(drop))?;
