@@ -2,7 +2,7 @@
 
 use std::fmt;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 use psc_compiler::{compile_files, CompiledGraph, Options};
@@ -10,18 +10,30 @@ use rayon::prelude::*;
 
 use crate::kernel::{Kernel, KernelError};
 
-/// One compiled graph and its native forward and adjoint kernels.
+/// One compiled graph with its native forward kernel; the fused forward + adjoint kernel is
+/// compiled on first use, because rendering and baking never need it and it is about three
+/// quarters of the JIT time.
 pub struct Material {
     pub graph: CompiledGraph,
+    /// Forward only: `eval`, `eval_grid`.
     pub kernel: Kernel,
+    gradient: OnceLock<Result<Kernel, KernelError>>,
 }
 
 impl Material {
-    /// Compiles the JIT kernels (forward and fused forward + adjoint) of a compiled graph.
+    /// Compiles the forward kernel of a compiled graph.
     pub fn new(graph: CompiledGraph) -> Result<Material, KernelError> {
-        let adjoint = graph.adjoint();
-        let kernel = Kernel::with_adjoint(graph.forward.clone(), adjoint)?;
-        Ok(Material { graph, kernel })
+        let kernel = Kernel::new(graph.forward.clone())?;
+        Ok(Material { graph, kernel, gradient: OnceLock::new() })
+    }
+
+    /// The kernel with the fused adjoint over every continuous parameter (compiled once, on the
+    /// first call, by whichever thread gets there first).
+    pub fn gradient_kernel(&self) -> Result<&Kernel, KernelError> {
+        self.gradient
+            .get_or_init(|| Kernel::with_adjoint(self.graph.forward.clone(), self.graph.adjoint()))
+            .as_ref()
+            .map_err(Clone::clone)
     }
 
     pub fn name(&self) -> &str {
@@ -52,7 +64,7 @@ impl std::error::Error for LibraryError {}
 /// Every material graph of a library folder (the `std/` modules are imported, not listed).
 pub struct Library {
     pub materials: Vec<Arc<Material>>,
-    /// Front end (parse, check, lower, differentiate) and JIT time, for reports.
+    /// Front end (parse, check, lower) and forward JIT time, for reports.
     pub front_end_time: Duration,
     pub jit_time: Duration,
 }

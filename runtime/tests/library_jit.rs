@@ -85,8 +85,9 @@ fn jit_adjoint_matches_the_interpreter_adjoint() {
         let v: Vec<f32> = (0..n).map(|_| rng.next()).collect();
         let seeds: Vec<Vec<f32>> = (0..9).map(|_| (0..n).map(|_| rng.next() - 0.5).collect()).collect();
         let seed_refs: Vec<&[f32]> = seeds.iter().map(|s| &s[..]).collect();
-        let grads = m.kernel.adjoint(&params, &u, &v, &seed_refs).unwrap();
-        let adjoint = m.kernel.adjoint_program().expect("library kernels carry adjoints");
+        let kernel = m.gradient_kernel().unwrap();
+        let grads = kernel.adjoint(&params, &u, &v, &seed_refs).unwrap();
+        let adjoint = kernel.adjoint_program().expect("gradient kernels carry adjoints");
         let reference = interp::eval(adjoint, &params, &Batch { u: &u, v: &v, seeds: &seed_refs });
         // Per-point d_u agreement, as a fraction (see the forward test for why not all points).
         let du_ref = &reference[9];
