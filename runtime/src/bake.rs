@@ -14,6 +14,8 @@ use std::path::{Path, PathBuf};
 
 use psc_compiler::{GraphInfo, ParamKind};
 
+use crate::kernel::grid_uv;
+
 /// Evaluates a graph's forward program at a batch of points: `(params, u, v)` to the nine
 /// channels of [`psc_compiler::CHANNELS`], one column each, as long as `u`.
 pub type Evaluator<'a> = dyn Fn(&[f32], &[f32], &[f32]) -> Result<Vec<Vec<f32>>, String> + Sync + 'a;
@@ -32,23 +34,7 @@ pub struct Maps {
     pub metallic: Vec<f32>,
 }
 
-/// The `(u, v)` of every texel of an `size`×`size` bake, row-major from the top row.
-pub fn texel_grid(size: usize) -> (Vec<f32>, Vec<f32>) {
-    let n = size * size;
-    let mut u = Vec::with_capacity(n);
-    let mut v = Vec::with_capacity(n);
-    let inv = 1.0 / size as f64;
-    for j in 0..size {
-        let vv = (1.0 - (j as f64 + 0.5) * inv) as f32;
-        for i in 0..size {
-            u.push(((i as f64 + 0.5) * inv) as f32);
-            v.push(vv);
-        }
-    }
-    (u, v)
-}
-
-/// Assembles maps from the nine forward channels evaluated over [`texel_grid`].
+/// Assembles maps from the nine forward channels evaluated over [`grid_uv`].
 pub fn maps_from_channels(size: usize, ch: &[Vec<f32>]) -> Result<Maps, String> {
     let n = size * size;
     if ch.len() != 9 || ch.iter().any(|c| c.len() != n) {
@@ -65,7 +51,7 @@ pub fn maps_from_channels(size: usize, ch: &[Vec<f32>]) -> Result<Maps, String> 
 
 /// Evaluates a graph over a `size`×`size` grid and returns its maps.
 pub fn bake(eval: &Evaluator, params: &[f32], size: usize) -> Result<Maps, String> {
-    let (u, v) = texel_grid(size);
+    let (u, v) = grid_uv(size, size).map_err(|e| e.to_string())?;
     let ch = eval(params, &u, &v)?;
     maps_from_channels(size, &ch)
 }
