@@ -20,8 +20,10 @@ use crate::types::Ty;
 pub use expr::MAX_LOOP_TRIPS;
 pub use graph::{OutputKind, OUTPUTS};
 
-/// Deepest expression nesting the checker walks; deeper input is rejected, not overflowed.
-pub const MAX_EXPR_DEPTH: usize = 200;
+/// Deepest expression nesting the checker walks; deeper input is rejected, not overflowed. A
+/// backstop: the parser already refuses trees deeper than [`psc_grammar::MAX_EXPR_DEPTH`], and
+/// the checker runs on the compiler's large stack.
+pub const MAX_EXPR_DEPTH: usize = 2 * psc_grammar::MAX_EXPR_DEPTH;
 
 /// A function's checked signature.
 #[derive(Clone, Debug)]
