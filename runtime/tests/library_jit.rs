@@ -4,35 +4,13 @@
 use psc_compiler::interp::{self, Batch};
 use std::sync::OnceLock;
 
+use psc_runtime::bake::{random_params, Rng};
 use psc_runtime::library::{default_library_root, Library};
 
 /// Compiled once for all tests of this file: JIT-compiling 31 graphs twice is wasted time.
 fn library() -> &'static Library {
     static LIBRARY: OnceLock<Library> = OnceLock::new();
     LIBRARY.get_or_init(|| Library::load(&default_library_root()).unwrap_or_else(|e| panic!("{e}")))
-}
-
-/// Deterministic xorshift, so failures reproduce.
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
-fn random_params(m: &psc_runtime::library::Material, rng: &mut Rng) -> Vec<f32> {
-    let mut params = m.graph.info.default_params();
-    for p in &m.graph.info.params {
-        let (lo, hi) = p.bounds();
-        for k in 0..p.width() {
-            let x = lo + (hi - lo) * rng.next();
-            params[p.slot + k] = if p.is_continuous() { x } else { x.round() };
-        }
-    }
-    params
 }
 
 /// Within `tol` absolutely or relatively.
@@ -48,10 +26,10 @@ fn jit_matches_the_interpreter_on_every_library_graph() {
     let n = 512;
     for m in &lib.materials {
         for trial in 0..3 {
-            let params = if trial == 0 { m.graph.info.default_params() } else { random_params(m, &mut rng) };
+            let params = if trial == 0 { m.graph.info.default_params() } else { random_params(&m.graph.info, &mut rng) };
             // Points inside and outside the unit tile.
-            let u: Vec<f32> = (0..n).map(|_| rng.next() * 3.0 - 1.0).collect();
-            let v: Vec<f32> = (0..n).map(|_| rng.next() * 3.0 - 1.0).collect();
+            let u: Vec<f32> = (0..n).map(|_| rng.next_f32() * 3.0 - 1.0).collect();
+            let v: Vec<f32> = (0..n).map(|_| rng.next_f32() * 3.0 - 1.0).collect();
             let jit = m.kernel.eval(&params, &u, &v).unwrap();
             let reference = interp::eval(&m.graph.forward, &params, &Batch { u: &u, v: &v, seeds: &[] });
             // Polynomial sin/cos/exp/log differ from libm by ~1e-6 relative; a difference that
@@ -80,10 +58,10 @@ fn jit_adjoint_matches_the_interpreter_adjoint() {
     let mut rng = Rng(12345);
     let n = 256;
     for m in &lib.materials {
-        let params = random_params(m, &mut rng);
-        let u: Vec<f32> = (0..n).map(|_| rng.next()).collect();
-        let v: Vec<f32> = (0..n).map(|_| rng.next()).collect();
-        let seeds: Vec<Vec<f32>> = (0..9).map(|_| (0..n).map(|_| rng.next() - 0.5).collect()).collect();
+        let params = random_params(&m.graph.info, &mut rng);
+        let u: Vec<f32> = (0..n).map(|_| rng.next_f32()).collect();
+        let v: Vec<f32> = (0..n).map(|_| rng.next_f32()).collect();
+        let seeds: Vec<Vec<f32>> = (0..9).map(|_| (0..n).map(|_| rng.next_f32() - 0.5).collect()).collect();
         let seed_refs: Vec<&[f32]> = seeds.iter().map(|s| &s[..]).collect();
         let kernel = m.gradient_kernel().unwrap();
         let grads = kernel.adjoint(&params, &u, &v, &seed_refs).unwrap();
