@@ -50,7 +50,8 @@ pub fn load_graph(spec: &str, name: Option<&str>, lib: Option<&Path>) -> Result<
         }
         (vec![path], Options { lib_root: lib.map(Path::to_path_buf) })
     } else {
-        let files = psg_files(&root).map_err(|e| Failure(format!("cannot read the library {}: {e}", root.display())))?;
+        let files =
+            psg_files(&root).map_err(|e| Failure(format!("cannot read the library {}: {e}", root.display())))?;
         (files, Options { lib_root: Some(root.clone()) })
     };
     let output = compile_files(&files, &options);
@@ -84,7 +85,8 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         }
         None => graph.info.default_params(),
     };
-    let material = Material::new(graph).map_err(|e| Failure(format!("cannot compile the graph to native code: {e}")))?;
+    let material =
+        Material::new(graph).map_err(|e| Failure(format!("cannot compile the graph to native code: {e}")))?;
     let info = &material.graph.info;
     let eval = |p: &[f32], u: &[f32], v: &[f32]| material.kernel.eval(p, u, v).map_err(|e| e.to_string());
 
@@ -97,14 +99,23 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         let started = Instant::now();
         let maps = bake::bake(&eval, p, args.size).map_err(Failure)?;
         let eval_time = started.elapsed();
-        let bad = maps.albedo.iter().chain(&maps.normal).chain(&maps.roughness).chain(&maps.height).filter(|x| !x.is_finite()).count();
+        let bad = maps
+            .albedo
+            .iter()
+            .chain(&maps.normal)
+            .chain(&maps.roughness)
+            .chain(&maps.height)
+            .filter(|x| !x.is_finite())
+            .count();
         if bad > 0 {
             return Err(Failure(format!("{stem}: {bad} non-finite values; nothing written")));
         }
-        let written = bake::write_maps(&maps, &args.out, stem).map_err(|e| Failure(format!("cannot write to {}: {e}", args.out.display())))?;
+        let written = bake::write_maps(&maps, &args.out, stem)
+            .map_err(|e| Failure(format!("cannot write to {}: {e}", args.out.display())))?;
         let json_path = args.out.join(format!("{stem}_params.json"));
         let json = serde_json::to_string_pretty(&bake::params_to_json(info, p))?;
-        bake::write_atomic(&json_path, |tmp| std::fs::write(tmp, &json)).map_err(|e| Failure(format!("cannot write {}: {e}", json_path.display())))?;
+        bake::write_atomic(&json_path, |tmp| std::fs::write(tmp, &json))
+            .map_err(|e| Failure(format!("cannot write {}: {e}", json_path.display())))?;
         eprintln!(
             "{stem}: {}² evaluated in {:.2} s, {} files written to {} in {:.2} s total",
             args.size,

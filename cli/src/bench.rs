@@ -90,7 +90,12 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
 /// Benchmarks one program (and its adjoint, if given) with 3 runs per measurement: the entry
 /// point for real graphs once the front end is wired into `psc bench`.
 #[allow(dead_code)]
-pub fn bench_program(name: &str, forward: &Program, adjoint: Option<&Program>, size: usize) -> Result<BenchRow, Failure> {
+pub fn bench_program(
+    name: &str,
+    forward: &Program,
+    adjoint: Option<&Program>,
+    size: usize,
+) -> Result<BenchRow, Failure> {
     bench_program_runs(name, forward, adjoint, &bench_params(forward.num_params), size, 3)
 }
 
@@ -197,10 +202,24 @@ fn ms(t: Duration) -> String {
 
 pub fn print_table(rows: &[BenchRow], size: usize) {
     let threads = rayon::current_num_threads();
-    println!("psc bench: {size}x{size} texels, best of several runs, {threads} rayon threads for JIT and interpreter alike");
+    println!(
+        "psc bench: {size}x{size} texels, best of several runs, {threads} rayon threads for JIT and interpreter alike"
+    );
     println!(
         "{:<20} {:>6} {:>7} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>7} {:>8} {:>9} {:>7}",
-        "program", "ops", "adj ops", "compile", "JIT fwd", "interp", "JIT/int", "JIT f+a", "interp", "JIT/int", "f+a/fwd", "flop/tex", "GFLOP/s"
+        "program",
+        "ops",
+        "adj ops",
+        "compile",
+        "JIT fwd",
+        "interp",
+        "JIT/int",
+        "JIT f+a",
+        "interp",
+        "JIT/int",
+        "f+a/fwd",
+        "flop/tex",
+        "GFLOP/s"
     );
     println!(
         "{:<20} {:>6} {:>7} {:>9} {:>9} {:>9} {:>9} {:>9} {:>7} {:>7} {:>8} {:>9} {:>7}",
@@ -396,7 +415,11 @@ fn synthetic_attempt(raw: usize, seed: u64) -> Program {
         pool.push(node);
     }
     let names = ["albedo.r", "albedo.g", "albedo.b", "roughness", "height"];
-    let outputs = names.iter().enumerate().map(|(k, name)| Output { name: (*name).into(), node: pool[pool.len() - 1 - 3 * k] }).collect();
+    let outputs = names
+        .iter()
+        .enumerate()
+        .map(|(k, name)| Output { name: (*name).into(), node: pool[pool.len() - 1 - 3 * k] })
+        .collect();
     let mut prog = b.finish(outputs);
     prog.eliminate_dead_code();
     prog

@@ -151,7 +151,12 @@ fn param_summary(g: &CompiledGraph) -> (usize, usize, usize) {
     )
 }
 
-fn print_summary(output: &psc_compiler::CompileOutput, adjoints: &[(psc_compiler::ir::Program, Duration)], files: usize, total: Duration) {
+fn print_summary(
+    output: &psc_compiler::CompileOutput,
+    adjoints: &[(psc_compiler::ir::Program, Duration)],
+    files: usize,
+    total: Duration,
+) {
     for (g, (adj, adj_time)) in output.graphs.iter().zip(adjoints) {
         let (cont, colors, discrete) = param_summary(g);
         println!("graph {} ({}, {})", g.info.name, g.info.category, g.info.file.display());
@@ -200,7 +205,11 @@ fn plural(n: usize) -> &'static str {
     }
 }
 
-fn print_json(output: &psc_compiler::CompileOutput, adjoints: &[(psc_compiler::ir::Program, Duration)], total: Duration) {
+fn print_json(
+    output: &psc_compiler::CompileOutput,
+    adjoints: &[(psc_compiler::ir::Program, Duration)],
+    total: Duration,
+) {
     let graphs: Vec<_> = output
         .graphs
         .iter()
@@ -254,6 +263,7 @@ fn print_json(output: &psc_compiler::CompileOutput, adjoints: &[(psc_compiler::i
         })
         .collect();
     let files: Vec<_> = output.files.iter().map(|(p, ok)| json!({"path": p, "ok": ok})).collect();
-    let doc = json!({"graphs": graphs, "diagnostics": diagnostics, "files": files, "total_ms": total.as_secs_f64() * 1e3});
+    let doc =
+        json!({"graphs": graphs, "diagnostics": diagnostics, "files": files, "total_ms": total.as_secs_f64() * 1e3});
     println!("{}", serde_json::to_string_pretty(&doc).unwrap_or_default());
 }

@@ -44,11 +44,17 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     let root = args.lib.clone().unwrap_or_else(default_library_root);
     let started = Instant::now();
     let library = Library::load(&root).map_err(|e| Failure(e.to_string()))?;
-    let filters: Vec<String> = args.only.as_deref().map(|s| s.split(',').map(str::to_string).collect()).unwrap_or_default();
+    let filters: Vec<String> =
+        args.only.as_deref().map(|s| s.split(',').map(str::to_string).collect()).unwrap_or_default();
     let materials: Vec<_> = library
         .materials
         .iter()
-        .filter(|m| filters.is_empty() || filters.iter().any(|f| m.graph.info.name.contains(f.as_str()) || m.graph.info.category.contains(f.as_str())))
+        .filter(|m| {
+            filters.is_empty()
+                || filters
+                    .iter()
+                    .any(|f| m.graph.info.name.contains(f.as_str()) || m.graph.info.category.contains(f.as_str()))
+        })
         .collect();
     println!(
         "{} graphs from {} (front end {:.2} s, JIT {:.2} s, total {:.2} s)",
@@ -61,7 +67,14 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     println!("{:<26} {:<14} {:>6} {:>6} {:>8}", "graph", "category", "params", "slots", "ops");
     for m in &materials {
         let info = &m.graph.info;
-        println!("{:<26} {:<14} {:>6} {:>6} {:>8}", info.name, info.category, info.params.len(), info.num_slots(), m.graph.forward.op_count());
+        println!(
+            "{:<26} {:<14} {:>6} {:>6} {:>8}",
+            info.name,
+            info.category,
+            info.params.len(),
+            info.num_slots(),
+            m.graph.forward.op_count()
+        );
     }
 
     if let Some(size) = args.bench {
@@ -93,7 +106,8 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
             }
         }
         let per_row = args.per_row.max(1) * (args.variants + 1);
-        sheet::write_sheet(path, &cells, per_row).map_err(|e| Failure(format!("cannot write {}: {e}", path.display())))?;
+        sheet::write_sheet(path, &cells, per_row)
+            .map_err(|e| Failure(format!("cannot write {}: {e}", path.display())))?;
         println!("contact sheet: {} ({} samples)", path.display(), cells.len());
     }
     Ok(ExitCode::SUCCESS)

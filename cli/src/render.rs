@@ -9,7 +9,8 @@ use std::process::ExitCode;
 
 use psc_render::camera::{load_camera_file, Camera};
 use psc_render::{
-    compute_light_grid, image_io, render_gbuffer, truth, LightGridOptions, LightRadiances, RenderOptions, Renderer, Scene,
+    compute_light_grid, image_io, render_gbuffer, truth, LightGridOptions, LightRadiances, RenderOptions, Renderer,
+    Scene,
 };
 
 use crate::Failure;
@@ -156,7 +157,13 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
 
     if args.gbuffer {
         let dir = need_out()?;
-        let gb = render_gbuffer(&renderer.geometry, &camera, &renderer.part_names, &renderer.lights.names, Some(&renderer.materials));
+        let gb = render_gbuffer(
+            &renderer.geometry,
+            &camera,
+            &renderer.part_names,
+            &renderer.lights.names,
+            Some(&renderer.materials),
+        );
         gb.save(&dir)?;
         eprintln!("wrote G-buffers ({width}x{height}) to {}", dir.display());
         return Ok(ExitCode::SUCCESS);
@@ -203,10 +210,25 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         let (primary, p_secs) = renderer.primary_ray_benchmark(&camera, 16, args.threads)?;
         let result = renderer.render(&camera, &opts)?;
         let threads = args.threads.unwrap_or_else(rayon::current_num_threads);
-        println!("scene {} ({} triangles), {width}x{height}, {} spp, max_depth {}, {threads} threads", args.scene.display(), scene.mesh.triangles.len(), args.spp, args.max_depth);
+        println!(
+            "scene {} ({} triangles), {width}x{height}, {} spp, max_depth {}, {threads} threads",
+            args.scene.display(),
+            scene.mesh.triangles.len(),
+            args.spp,
+            args.max_depth
+        );
         println!("primary rays: {:.2} Mrays/s ({primary} rays in {p_secs:.3} s)", primary as f64 / p_secs / 1e6);
-        println!("full paths:   {:.2} Mrays/s ({} rays incl. shadow rays, {:.2} rays/sample)", result.rays as f64 / result.seconds / 1e6, result.rays, result.rays as f64 / (width * height) as f64 / args.spp as f64);
-        println!("render time:  {:.3} s ({:.2} Msamples/s)", result.seconds, (width * height) as f64 * args.spp as f64 / result.seconds / 1e6);
+        println!(
+            "full paths:   {:.2} Mrays/s ({} rays incl. shadow rays, {:.2} rays/sample)",
+            result.rays as f64 / result.seconds / 1e6,
+            result.rays,
+            result.rays as f64 / (width * height) as f64 / args.spp as f64
+        );
+        println!(
+            "render time:  {:.3} s ({:.2} Msamples/s)",
+            result.seconds,
+            (width * height) as f64 * args.spp as f64 / result.seconds / 1e6
+        );
         if let Some(path) = &out {
             image_io::write_rgb(path, width, height, &result.image)?;
         }
@@ -220,7 +242,12 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
             image_io::write_rgb(&dir.join(format!("{name}.exr")), width, height, img)?;
         }
         image_io::write_rgb(&dir.join("combined.exr"), width, height, &result.image)?;
-        eprintln!("wrote {} per-light images (unit radiance) and combined.exr to {} in {:.2} s", result.per_light.len(), dir.display(), result.seconds);
+        eprintln!(
+            "wrote {} per-light images (unit radiance) and combined.exr to {} in {:.2} s",
+            result.per_light.len(),
+            dir.display(),
+            result.seconds
+        );
     } else {
         let path = need_out()?;
         image_io::write_rgb(&path, width, height, &result.image)?;

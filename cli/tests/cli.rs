@@ -5,11 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn psc(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_psc"))
-        .args(args)
-        .current_dir(repo())
-        .output()
-        .expect("psc runs")
+    Command::new(env!("CARGO_BIN_EXE_psc")).args(args).current_dir(repo()).output().expect("psc runs")
 }
 
 fn repo() -> PathBuf {
@@ -84,10 +80,15 @@ fn bake_writes_every_map_and_random_variants() {
     let dir = scratch("bake");
     let out = psc(&["bake", "knit", "--size", "16", "--random", "2", "--seed", "3", "--out", dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", text(&out.stderr));
-    let mut names: Vec<String> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let mut names: Vec<String> =
+        std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     names.sort();
     for suffix in ["albedo.png", "albedo.exr", "normal.png", "roughness.png", "height.exr", "params.json"] {
-        assert_eq!(names.iter().filter(|n| n.ends_with(suffix)).count(), 3, "{suffix} for defaults + 2 variants in {names:?}");
+        assert_eq!(
+            names.iter().filter(|n| n.ends_with(suffix)).count(),
+            3,
+            "{suffix} for defaults + 2 variants in {names:?}"
+        );
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -98,7 +99,16 @@ fn bake_refuses_out_of_range_parameters_and_writes_nothing() {
     let params = dir.join("p.json");
     std::fs::write(&params, r#"{"rows": 99}"#).unwrap();
     let out_dir = dir.join("maps");
-    let out = psc(&["bake", "oak_planks", "--size", "8", "--params", params.to_str().unwrap(), "--out", out_dir.to_str().unwrap()]);
+    let out = psc(&[
+        "bake",
+        "oak_planks",
+        "--size",
+        "8",
+        "--params",
+        params.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
     assert_eq!(out.status.code(), Some(1));
     assert!(text(&out.stderr).contains("rows"), "{}", text(&out.stderr));
     let written = std::fs::read_dir(&out_dir).map(|d| d.count()).unwrap_or(0);
@@ -111,8 +121,19 @@ fn render_the_example_room_with_procedural_materials() {
     let dir = scratch("render");
     let image = dir.join("room.png");
     let out = psc(&[
-        "render", "examples/room", "--assign", "examples/room/materials.json", "--lights", "examples/room/lights.json",
-        "--spp", "1", "--size", "32x24", "--quiet", "--out", image.to_str().unwrap(),
+        "render",
+        "examples/room",
+        "--assign",
+        "examples/room/materials.json",
+        "--lights",
+        "examples/room/lights.json",
+        "--spp",
+        "1",
+        "--size",
+        "32x24",
+        "--quiet",
+        "--out",
+        image.to_str().unwrap(),
     ]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let decoded = std::fs::read(&image).expect("the image was written");
@@ -122,7 +143,19 @@ fn render_the_example_room_with_procedural_materials() {
     let bad = dir.join("bad.json");
     std::fs::write(&bad, r#"{"parts": {"flor": {"graph": "oak_planks"}}}"#).unwrap();
     let image2 = dir.join("never.png");
-    let out = psc(&["render", "examples/room", "--assign", bad.to_str().unwrap(), "--spp", "1", "--size", "8x6", "--quiet", "--out", image2.to_str().unwrap()]);
+    let out = psc(&[
+        "render",
+        "examples/room",
+        "--assign",
+        bad.to_str().unwrap(),
+        "--spp",
+        "1",
+        "--size",
+        "8x6",
+        "--quiet",
+        "--out",
+        image2.to_str().unwrap(),
+    ]);
     assert_eq!(out.status.code(), Some(1));
     let stderr = text(&out.stderr);
     assert!(stderr.contains("part `flor`") && stderr.contains("floor"), "{stderr}");

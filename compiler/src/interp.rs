@@ -67,11 +67,7 @@ pub fn eval(program: &Program, params: &[f32], batch: &Batch) -> Vec<Vec<f32>> {
             }
         }
     }
-    program
-        .outputs
-        .iter()
-        .map(|o| values[o.node.index()].clone().expect("output computed"))
-        .collect()
+    program.outputs.iter().map(|o| values[o.node.index()].clone().expect("output computed")).collect()
 }
 
 /// Evaluates at a single point; convenient for tests and finite differences.

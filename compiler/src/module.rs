@@ -91,7 +91,11 @@ impl ModuleSet {
             Ok(b) => b,
             Err(e) => {
                 let file = self.sources.add(path.display().to_string(), "");
-                self.diagnostics.push(Diagnostic::error(file, Span::default(), format!("cannot read `{}`: {e}", path.display())));
+                self.diagnostics.push(Diagnostic::error(
+                    file,
+                    Span::default(),
+                    format!("cannot read `{}`: {e}", path.display()),
+                ));
                 return None;
             }
         };
@@ -103,8 +107,12 @@ impl ModuleSet {
         if bytes.len() > MAX_SOURCE_BYTES {
             let file = self.sources.add(display_name, "");
             self.diagnostics.push(
-                Diagnostic::error(file, Span::default(), format!("file is {} bytes; the limit is {MAX_SOURCE_BYTES}", bytes.len()))
-                    .with_hint("is this really a .psg material graph?"),
+                Diagnostic::error(
+                    file,
+                    Span::default(),
+                    format!("file is {} bytes; the limit is {MAX_SOURCE_BYTES}", bytes.len()),
+                )
+                .with_hint("is this really a .psg material graph?"),
             );
             return None;
         }
@@ -116,8 +124,8 @@ impl ModuleSet {
                 let file = self.sources.add(display_name, lossy);
                 self.diagnostics.push(
                     // The stored text is the lossy conversion, where the bad byte became U+FFFD
-                // (three bytes): the caret must cover that whole character.
-                Diagnostic::error(file, Span::new(at, at + '\u{FFFD}'.len_utf8()), "file is not valid UTF-8")
+                    // (three bytes): the caret must cover that whole character.
+                    Diagnostic::error(file, Span::new(at, at + '\u{FFFD}'.len_utf8()), "file is not valid UTF-8")
                         .with_label("invalid byte here")
                         .with_hint("is this a binary file? .psg graphs are UTF-8 text"),
                 );
@@ -180,8 +188,12 @@ impl ModuleSet {
             };
             if crate::builtins::Builtin::from_name(&name.name).is_some() || name.name == "uv" {
                 self.diagnostics.push(
-                    Diagnostic::error(file, name.span, format!("`{}` is a built-in and cannot be redefined", name.name))
-                        .with_hint("choose another name"),
+                    Diagnostic::error(
+                        file,
+                        name.span,
+                        format!("`{}` is a built-in and cannot be redefined", name.name),
+                    )
+                    .with_hint("choose another name"),
                 );
                 continue;
             }
@@ -224,8 +236,12 @@ impl ModuleSet {
         let canonical = path.canonicalize().unwrap_or_else(|_| path.clone());
         if self.loading.contains(&canonical) {
             self.diagnostics.push(
-                Diagnostic::error(file, import.span, format!("import cycle: `{}` is already being imported", dotted.join(".")))
-                    .with_hint("modules may not import each other in a cycle; move the shared functions to a third module"),
+                Diagnostic::error(
+                    file,
+                    import.span,
+                    format!("import cycle: `{}` is already being imported", dotted.join(".")),
+                )
+                .with_hint("modules may not import each other in a cycle; move the shared functions to a third module"),
             );
             return None;
         }

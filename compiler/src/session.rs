@@ -69,8 +69,12 @@ fn run_on_big_stack(input: Input, options: Options) -> CompileOutput {
             let mut sources = SourceMap::new();
             let file = sources.add("<compiler>", "");
             CompileOutput {
-                diagnostics: vec![Diagnostic::error(file, Default::default(), "internal compiler error (the compiler thread failed)")
-                    .with_hint("please report this with the input file")],
+                diagnostics: vec![Diagnostic::error(
+                    file,
+                    Default::default(),
+                    "internal compiler error (the compiler thread failed)",
+                )
+                .with_hint("please report this with the input file")],
                 sources,
                 graphs: Vec::new(),
                 files: Vec::new(),

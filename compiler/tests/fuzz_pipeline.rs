@@ -34,7 +34,8 @@ use support::*;
 fn check_input(family: &str, bytes: &[u8]) -> Result<(), String> {
     let path = graphs_dir().join(family).join("__fuzz.psg");
     let out = compile_text(&path, bytes.to_vec(), &Options::default());
-    check_output(&out).map_err(|e| format!("{e}\n--- input ({} bytes) ---\n{}", bytes.len(), String::from_utf8_lossy(bytes)))
+    check_output(&out)
+        .map_err(|e| format!("{e}\n--- input ({} bytes) ---\n{}", bytes.len(), String::from_utf8_lossy(bytes)))
 }
 
 fn check_output(out: &CompileOutput) -> Result<(), String> {
@@ -66,7 +67,12 @@ fn check_output(out: &CompileOutput) -> Result<(), String> {
             adjoint.validate().map_err(|e| format!("graph {}: adjoint program invalid: {e}", g.info.name))?;
             let params = g.info.default_params();
             if params.len() < g.forward.num_params {
-                return Err(format!("graph {}: {} parameter slots, the program reads {}", g.info.name, params.len(), g.forward.num_params));
+                return Err(format!(
+                    "graph {}: {} parameter slots, the program reads {}",
+                    g.info.name,
+                    params.len(),
+                    g.forward.num_params
+                ));
             }
             eval_point(&g.forward, &params, 0.3, 0.7, &[]);
             eval_point(&adjoint, &params, 0.3, 0.7, &[1.0; 9]);
@@ -75,9 +81,15 @@ fn check_output(out: &CompileOutput) -> Result<(), String> {
     Ok(())
 }
 
-fn check_span(out: &CompileOutput, file: psc_compiler::diag::FileId, span: psc_grammar::ast::Span, d: &Diagnostic) -> Result<(), String> {
+fn check_span(
+    out: &CompileOutput,
+    file: psc_compiler::diag::FileId,
+    span: psc_grammar::ast::Span,
+    d: &Diagnostic,
+) -> Result<(), String> {
     let text = out.sources.text(file);
-    let on_boundaries = text.is_char_boundary(span.start.min(text.len())) && text.is_char_boundary(span.end.min(text.len()));
+    let on_boundaries =
+        text.is_char_boundary(span.start.min(text.len())) && text.is_char_boundary(span.end.min(text.len()));
     if span.start > span.end || span.end > text.len() || !on_boundaries {
         return Err(format!(
             "span {}..{} of `{}` is not within its file `{}` ({} bytes) on char boundaries",
@@ -109,7 +121,11 @@ fn library() -> &'static [LibFile] {
                 let text = std::fs::read_to_string(&p).unwrap();
                 let family = p.parent().unwrap().file_name().unwrap().to_string_lossy().into_owned();
                 let family = if family == "graphs" { "misc".to_string() } else { family };
-                let mut idents: Vec<String> = tokens(&text).into_iter().filter(|t| t.1 == Tok::Ident).map(|t| text[t.0.clone()].to_string()).collect();
+                let mut idents: Vec<String> = tokens(&text)
+                    .into_iter()
+                    .filter(|t| t.1 == Tok::Ident)
+                    .map(|t| text[t.0.clone()].to_string())
+                    .collect();
                 idents.sort();
                 idents.dedup();
                 LibFile { family, text, idents }
@@ -140,7 +156,9 @@ fn tokens(text: &str) -> Vec<(std::ops::Range<usize>, Tok)> {
             out.push((s..i, Tok::Ident));
         } else if c.is_ascii_digit() {
             let s = i;
-            while i < b.len() && (b[i].is_ascii_digit() || b[i] == b'.' && b.get(i + 1).is_some_and(|x| x.is_ascii_digit())) {
+            while i < b.len()
+                && (b[i].is_ascii_digit() || b[i] == b'.' && b.get(i + 1).is_some_and(|x| x.is_ascii_digit()))
+            {
                 i += 1;
             }
             if i < b.len() && (b[i] == b'e' || b[i] == b'E') {
@@ -164,32 +182,94 @@ fn tokens(text: &str) -> Vec<(std::ops::Range<usize>, Tok)> {
 }
 
 const EXTREME_NUMBERS: &[&str] = &[
-    "1e38", "-1e38", "3.5e38", "1e39", "-0", "-0.0", "0", "0.0", "1e-45", "1.4e-45", "1e-50", "1e-38", "99999999999999999999",
-    "2147483647", "2147483648", "-2147483648", "4294967296", "9223372036854775807", "9223372036854775808",
-    "18446744073709551616", "1e308", "1e400", "65536", "100000", "1000000", "16777217", "0.5", "1", "2", "-1", "3",
+    "1e38",
+    "-1e38",
+    "3.5e38",
+    "1e39",
+    "-0",
+    "-0.0",
+    "0",
+    "0.0",
+    "1e-45",
+    "1.4e-45",
+    "1e-50",
+    "1e-38",
+    "99999999999999999999",
+    "2147483647",
+    "2147483648",
+    "-2147483648",
+    "4294967296",
+    "9223372036854775807",
+    "9223372036854775808",
+    "18446744073709551616",
+    "1e308",
+    "1e400",
+    "65536",
+    "100000",
+    "1000000",
+    "16777217",
+    "0.5",
+    "1",
+    "2",
+    "-1",
+    "3",
 ];
 
 /// One edit of a library file. Positions are fractions of the text (or counts), resolved when
 /// applied, so that shrinking keeps them meaningful.
 #[derive(Clone, Debug)]
 enum Mutation {
-    Delete { at: f64, len: usize },
-    Duplicate { at: f64, len: usize, to: f64 },
-    Swap { a: f64, b: f64, len: usize },
+    Delete {
+        at: f64,
+        len: usize,
+    },
+    Duplicate {
+        at: f64,
+        len: usize,
+        to: f64,
+    },
+    Swap {
+        a: f64,
+        b: f64,
+        len: usize,
+    },
     /// A slice of another library file (by index) inserted here.
-    Insert { at: f64, from: usize, from_at: f64, len: usize },
+    Insert {
+        at: f64,
+        from: usize,
+        from_at: f64,
+        len: usize,
+    },
     /// The k-th identifier occurrence replaced by the j-th identifier of the file.
-    ReplaceIdent { k: usize, j: usize },
+    ReplaceIdent {
+        k: usize,
+        j: usize,
+    },
     /// Every occurrence of one identifier replaced by another of the file.
-    RenameAll { k: usize, j: usize },
+    RenameAll {
+        k: usize,
+        j: usize,
+    },
     /// The k-th numeric literal replaced by an extreme value.
-    ReplaceNumber { k: usize, value: usize },
+    ReplaceNumber {
+        k: usize,
+        value: usize,
+    },
     /// Every numeric literal replaced by one extreme value.
-    AllNumbers { value: usize },
-    DropLine { k: usize },
-    DuplicateLine { k: usize },
+    AllNumbers {
+        value: usize,
+    },
+    DropLine {
+        k: usize,
+    },
+    DuplicateLine {
+        k: usize,
+    },
     /// A token of the soup vocabulary inserted.
-    InsertToken { at: f64, tok: usize },
+    InsertToken {
+        at: f64,
+        tok: usize,
+    },
 }
 
 fn mutation() -> impl Strategy<Value = Mutation> {
@@ -198,7 +278,8 @@ fn mutation() -> impl Strategy<Value = Mutation> {
         (frac.clone(), 1..200usize).prop_map(|(at, len)| Mutation::Delete { at, len }),
         (frac.clone(), 1..200usize, frac.clone()).prop_map(|(at, len, to)| Mutation::Duplicate { at, len, to }),
         (frac.clone(), frac.clone(), 1..120usize).prop_map(|(a, b, len)| Mutation::Swap { a, b, len }),
-        (frac.clone(), any::<usize>(), frac.clone(), 1..300usize).prop_map(|(at, from, from_at, len)| Mutation::Insert { at, from, from_at, len }),
+        (frac.clone(), any::<usize>(), frac.clone(), 1..300usize)
+            .prop_map(|(at, from, from_at, len)| Mutation::Insert { at, from, from_at, len }),
         (any::<usize>(), any::<usize>()).prop_map(|(k, j)| Mutation::ReplaceIdent { k, j }),
         (any::<usize>(), any::<usize>()).prop_map(|(k, j)| Mutation::RenameAll { k, j }),
         (any::<usize>(), any::<usize>()).prop_map(|(k, value)| Mutation::ReplaceNumber { k, value }),
@@ -323,15 +404,128 @@ fn vocabulary() -> &'static [String] {
     static V: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
     V.get_or_init(|| {
         let mut v: Vec<String> = [
-            "import", "const", "fn", "graph", "param", "node", "let", "var", "for", "in", "output", "category", "description", "if",
-            "else", "true", "false", "int", "float", "vec2", "vec3", "color", "bool", "uv", "sin", "cos", "floor", "fract", "abs",
-            "sqrt", "pow", "exp", "log", "min", "max", "clamp", "mix", "step", "smoothstep", "atan2", "length", "dot", "cross",
-            "normalize", "distance", "select", "hash", "sample", "ddu", "ddv", "srgb", "rgb", "albedo", "roughness", "height",
-            "normal", "metallic", "std", "std.noise", "std.cells", "std.tiles", "fbm", "cells", "bricks", "perlin", "blur",
-            "p", "x", "a", "f1", "id", "octaves", "{", "}", "(", ")", "[", "]", ",", ";", ":", ".", "..", "->", "=", "+=",
-            "-=", "*=", "/=", "+", "-", "*", "/", "%", "<", "<=", ">", ">=", "==", "!=", "&&", "||", "!", "\"text\"",
-            "\"unterminated", "// comment\n", "/// doc\n", "/* block */", "/* open", "*/", "\n", "\t", "é", "\u{feff}", "\0",
-            ".x", ".xy", ".zyx", ".rgb", ".f1", "0..4", "0..1000000",
+            "import",
+            "const",
+            "fn",
+            "graph",
+            "param",
+            "node",
+            "let",
+            "var",
+            "for",
+            "in",
+            "output",
+            "category",
+            "description",
+            "if",
+            "else",
+            "true",
+            "false",
+            "int",
+            "float",
+            "vec2",
+            "vec3",
+            "color",
+            "bool",
+            "uv",
+            "sin",
+            "cos",
+            "floor",
+            "fract",
+            "abs",
+            "sqrt",
+            "pow",
+            "exp",
+            "log",
+            "min",
+            "max",
+            "clamp",
+            "mix",
+            "step",
+            "smoothstep",
+            "atan2",
+            "length",
+            "dot",
+            "cross",
+            "normalize",
+            "distance",
+            "select",
+            "hash",
+            "sample",
+            "ddu",
+            "ddv",
+            "srgb",
+            "rgb",
+            "albedo",
+            "roughness",
+            "height",
+            "normal",
+            "metallic",
+            "std",
+            "std.noise",
+            "std.cells",
+            "std.tiles",
+            "fbm",
+            "cells",
+            "bricks",
+            "perlin",
+            "blur",
+            "p",
+            "x",
+            "a",
+            "f1",
+            "id",
+            "octaves",
+            "{",
+            "}",
+            "(",
+            ")",
+            "[",
+            "]",
+            ",",
+            ";",
+            ":",
+            ".",
+            "..",
+            "->",
+            "=",
+            "+=",
+            "-=",
+            "*=",
+            "/=",
+            "+",
+            "-",
+            "*",
+            "/",
+            "%",
+            "<",
+            "<=",
+            ">",
+            ">=",
+            "==",
+            "!=",
+            "&&",
+            "||",
+            "!",
+            "\"text\"",
+            "\"unterminated",
+            "// comment\n",
+            "/// doc\n",
+            "/* block */",
+            "/* open",
+            "*/",
+            "\n",
+            "\t",
+            "é",
+            "\u{feff}",
+            "\0",
+            ".x",
+            ".xy",
+            ".zyx",
+            ".rgb",
+            ".f1",
+            "0..4",
+            "0..1000000",
         ]
         .iter()
         .map(|s| s.to_string())

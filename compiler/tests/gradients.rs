@@ -36,7 +36,13 @@ enum Probe {
 ///   1e-3 · (1 + |exact|)            (mixed absolute/relative floor)
 /// + 2 · |D(h) - D(h/2)|             (estimated truncation + rounding error of the probe)
 /// + 16 · eps · max|node| / h        (f32 rounding of the evaluated values, amplified by 1/h).
-fn check_against_finite_differences(program: &Program, k: usize, wrt: Wrt, at: Point, exact: f32) -> Result<Probe, String> {
+fn check_against_finite_differences(
+    program: &Program,
+    k: usize,
+    wrt: Wrt,
+    at: Point,
+    exact: f32,
+) -> Result<Probe, String> {
     let x = at.get(wrt);
     let h = 1e-3 * x.abs().max(1.0);
     let offsets = [-h, -h / 2.0, 0.0, h / 2.0, h];
@@ -113,7 +119,8 @@ fn check_program(program: &Program, points: &[(Point, [f32; 3])]) -> Result<Cove
         // 1e-5 (about 80 ulps) of the largest tangent or adjoint intermediate, for results that
         // cancel down from much larger intermediates (d/du of u / sin(u) near u = 0).
         let reverse = at.eval(&fused, seeds);
-        let same_values = values.iter().zip(&reverse).all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
+        let same_values =
+            values.iter().zip(&reverse).all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()));
         if !same_values {
             return Err(format!("fused forward values {:?} differ from {values:?}", &reverse[..outputs]));
         }
@@ -122,7 +129,8 @@ fn check_program(program: &Program, points: &[(Point, [f32; 3])]) -> Result<Cove
         if node_values(program, at, &[]).iter().any(|x| !x.is_finite()) {
             continue;
         }
-        let adjoint_scale = largest_dependent_value(&fused, &node_values(&fused, at, seeds), |op| matches!(op, Op::Seed(_)));
+        let adjoint_scale =
+            largest_dependent_value(&fused, &node_values(&fused, at, seeds), |op| matches!(op, Op::Seed(_)));
         for (w, &wrt) in ALL_WRT.iter().enumerate() {
             let terms: Vec<f32> = seeds.iter().zip(&gradients[w]).map(|(s, g)| s * g).collect();
             if terms.iter().any(|t| !t.is_finite()) {
@@ -220,7 +228,6 @@ fn random_programs_are_mostly_comparable_and_use_every_op() {
     }
 }
 
-
 /// The cheap-gradient principle: the fused program costs a bounded multiple of the forward one
 /// (the worst single rule, atan2, adds about ten ops), never an expression swell.
 #[test]
@@ -255,7 +262,8 @@ fn single(f: impl FnOnce(&mut Builder, NodeId, NodeId, NodeId) -> NodeId) -> Pro
 
 /// `[df/du, df/dv, df/dp0]` by forward mode, after checking that reverse mode agrees.
 fn gradient(program: &Program, u: f32, v: f32, p0: f32) -> [f32; 3] {
-    let forward = [Wrt::U, Wrt::V, Wrt::Param(0)].map(|w| eval_point(&derivative_program(program, w), &[p0], u, v, &[])[0]);
+    let forward =
+        [Wrt::U, Wrt::V, Wrt::Param(0)].map(|w| eval_point(&derivative_program(program, w), &[p0], u, v, &[])[0]);
     let fused = adjoint(program, &[0]);
     fused.validate().unwrap();
     let reverse = eval_point(&fused, &[p0], u, v, &[1.0]);
@@ -268,7 +276,11 @@ fn gradient(program: &Program, u: f32, v: f32, p0: f32) -> [f32; 3] {
 fn assert_gradient(program: &Program, (u, v, p0): (f32, f32, f32), expected: [f32; 3]) {
     let got = gradient(program, u, v, p0);
     for (g, e) in got.iter().zip(expected) {
-        assert!((g - e).abs() <= 1e-5 * (1.0 + e.abs()), "at {:?}: got {got:?}, expected {expected:?}\n{program}", (u, v, p0));
+        assert!(
+            (g - e).abs() <= 1e-5 * (1.0 + e.abs()),
+            "at {:?}: got {got:?}, expected {expected:?}\n{program}",
+            (u, v, p0)
+        );
     }
 }
 

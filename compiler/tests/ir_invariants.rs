@@ -83,7 +83,10 @@ fn the_invariant_checks_catch_violations() {
     let out = |node: u32| vec![Output { name: "x".into(), node: NodeId(node) }];
     let base = |nodes: Vec<Op>, o: u32| Program { nodes, outputs: out(o), num_params: 0, num_seeds: 0 };
     // add(u, v) and add(v, u): not caught by validate(), caught here.
-    let dup = base(vec![Op::U, Op::V, Op::Add(NodeId(0), NodeId(1)), Op::Add(NodeId(1), NodeId(0)), Op::Mul(NodeId(2), NodeId(3))], 4);
+    let dup = base(
+        vec![Op::U, Op::V, Op::Add(NodeId(0), NodeId(1)), Op::Add(NodeId(1), NodeId(0)), Op::Mul(NodeId(2), NodeId(3))],
+        4,
+    );
     assert!(check_invariants(&dup).unwrap_err().contains("repeats"));
     let c = f32::to_bits(2.0);
     let unfolded = base(vec![Op::Const(c), Op::Sin(NodeId(0))], 1);
@@ -133,7 +136,10 @@ fn a_subexpression_written_twice_costs_the_same_as_written_once() {
         ),
         // Two nodes with the same definition vs one node used twice.
         (
-            graph_with("    node a = cells(uv * 2.0, 5.0, k).f1\n    node b = cells(uv * 2.0, 5.0, k).f1", "0.01 * a * exp(b)"),
+            graph_with(
+                "    node a = cells(uv * 2.0, 5.0, k).f1\n    node b = cells(uv * 2.0, 5.0, k).f1",
+                "0.01 * a * exp(b)",
+            ),
             graph_with("    node a = cells(uv * 2.0, 5.0, k).f1", "0.01 * a * exp(a)"),
         ),
         // Commuted operands of a commutative op, and the same value through a let.

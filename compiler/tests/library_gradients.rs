@@ -194,8 +194,10 @@ fn a_graph_that_does_not_tile_is_caught() {
     let rep = check_tiling(&g.forward, &g.info.default_params(), &mut Rng::new(5), 100);
     assert!(rep.failure_count >= 250, "only {} of {} mismatches flagged", rep.failure_count, rep.compared);
     // The same graph made periodic passes.
-    let fixed = src.replace("sin(6.0 * uv.x) + 0.01 * uv.y", "sin(6.28318531 * 2.0 * uv.x) + 0.01 * cos(6.28318531 * uv.y)");
-    let out = psc_compiler::compile_text(&graphs_dir().join("wood/__seam.psg"), fixed, &psc_compiler::Options::default());
+    let fixed =
+        src.replace("sin(6.0 * uv.x) + 0.01 * uv.y", "sin(6.28318531 * 2.0 * uv.x) + 0.01 * cos(6.28318531 * uv.y)");
+    let out =
+        psc_compiler::compile_text(&graphs_dir().join("wood/__seam.psg"), fixed, &psc_compiler::Options::default());
     let g = &out.graphs[0];
     let rep = check_tiling(&g.forward, &g.info.default_params(), &mut Rng::new(5), 100);
     assert_eq!(rep.failure_count + rep.isolated, 0, "{:?}", rep.failures);

@@ -71,16 +71,20 @@ fn reduce(e: &str, t: &TypeExpr) -> Result<String, String> {
             other => Err(format!("returns `{other}`")),
         },
         TypeExpr::Record(fields, _) => {
-            let parts: Result<Vec<String>, String> = fields.iter().map(|(n, t)| reduce(&format!("{e}.{}", n.name), t)).collect();
+            let parts: Result<Vec<String>, String> =
+                fields.iter().map(|(n, t)| reduce(&format!("{e}.{}", n.name), t)).collect();
             Ok(format!("({})", parts?.join(" + ")))
         }
     }
 }
 
 /// Names of scalar arguments that are counts or frequencies (floored inside the fn).
-const FREQ_LIKE: &[&str] = &["per", "freq", "count", "res", "cols", "rows", "threads", "lines", "sides", "ratio", "stretch", "tiling", "quarter"];
+const FREQ_LIKE: &[&str] = &[
+    "per", "freq", "count", "res", "cols", "rows", "threads", "lines", "sides", "ratio", "stretch", "tiling", "quarter",
+];
 /// Names of arguments that are images (fields over the tile) rather than settings.
-const IMAGE_LIKE: &[&str] = &["e", "h", "mask", "slope", "intensity", "x", "t", "fg", "bg", "base", "detail", "c", "v", "o", "a", "b", "r2"];
+const IMAGE_LIKE: &[&str] =
+    &["e", "h", "mask", "slope", "intensity", "x", "t", "fg", "bg", "base", "detail", "c", "v", "o", "a", "b", "r2"];
 
 struct Wrapper {
     text: String,
@@ -142,7 +146,14 @@ fn wrapper(f: &StdFn) -> Result<Wrapper, String> {
                 let (a, b) = (new_param(-0.2, 0.2, 0.05), new_param(-0.2, 0.2, -0.05));
                 format!("vec2({a}, {b})")
             }
-            "vec3" | "color" if IMAGE_LIKE.contains(&name) || !d.params.iter().take_while(|x| x.name.name != name).any(|x| matches!(type_name(&x.ty), Some("vec3" | "color"))) => {
+            "vec3" | "color"
+                if IMAGE_LIKE.contains(&name)
+                    || !d
+                        .params
+                        .iter()
+                        .take_while(|x| x.name.name != name)
+                        .any(|x| matches!(type_name(&x.ty), Some("vec3" | "color"))) =>
+            {
                 field += 1;
                 uses_uv = true;
                 let (a, b, c) = (new_param(0.2, 0.8, 0.4), new_param(0.2, 0.8, 0.5), new_param(0.2, 0.8, 0.6));
@@ -199,7 +210,8 @@ fn wrapper(f: &StdFn) -> Result<Wrapper, String> {
 fn every_std_fn_compiles_differentiates_and_tiles() {
     let fns = std_fns();
     assert!(fns.len() >= 60, "only {} std fns found", fns.len());
-    let filter: Option<Vec<String>> = std::env::var("PSC_STD_FNS").ok().map(|s| s.split(',').map(str::to_string).collect());
+    let filter: Option<Vec<String>> =
+        std::env::var("PSC_STD_FNS").ok().map(|s| s.split(',').map(str::to_string).collect());
     let verbose = std::env::var("PSC_STD_VERBOSE").is_ok();
     let path = graphs_dir().join("wood").join("__std_wrapper.psg");
     let mut not_covered: BTreeMap<String, String> = BTreeMap::new();
@@ -244,7 +256,11 @@ fn every_std_fn_compiles_differentiates_and_tiles() {
         total.add(&cov);
         let probes = cov.compared + cov.skipped();
         if !cov.failures.is_empty() {
-            failures.push(format!("{fname}: gradients disagree:\n{}\n{}", cov.failures[..cov.failures.len().min(3)].join("\n"), w.text));
+            failures.push(format!(
+                "{fname}: gradients disagree:\n{}\n{}",
+                cov.failures[..cov.failures.len().min(3)].join("\n"),
+                w.text
+            ));
         }
         // Every wrapper gets some comparisons; piecewise-constant fns (hashes, checker) have
         // only zero derivatives, which are still compared.

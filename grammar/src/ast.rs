@@ -134,10 +134,18 @@ pub enum GraphMember {
     Description(String, Span),
     Param(ParamDef),
     /// `node name = expr` and `let name = expr` are the same thing.
-    Node { name: Ident, value: Expr, span: Span },
+    Node {
+        name: Ident,
+        value: Expr,
+        span: Span,
+    },
     Const(ConstDef),
     /// `output albedo = expr`.
-    Output { name: Ident, value: Expr, span: Span },
+    Output {
+        name: Ident,
+        value: Expr,
+        span: Span,
+    },
 }
 
 /// `param name = default in [lo, hi] int` / `param tint = srgb(0.5, 0.4, 0.3)`.

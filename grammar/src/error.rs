@@ -16,11 +16,7 @@ pub struct ParseError {
 
 impl ParseError {
     pub fn new(message: impl Into<String>, span: Span) -> Self {
-        ParseError {
-            message: message.into(),
-            span,
-            hint: None,
-        }
+        ParseError { message: message.into(), span, hint: None }
     }
 
     pub fn with_hint(mut self, hint: impl Into<String>) -> Self {

@@ -28,27 +28,15 @@ pub(crate) struct Lowerer<'s> {
 
 impl<'s> Lowerer<'s> {
     pub(crate) fn new(src: &'s str, base: usize, doc_lines: &'s [Span]) -> Self {
-        Lowerer {
-            src,
-            base,
-            doc_lines,
-            errors: RefCell::new(Vec::new()),
-        }
+        Lowerer { src, base, doc_lines, errors: RefCell::new(Vec::new()) }
     }
 
     pub(crate) fn into_errors(self) -> Vec<ParseError> {
         self.errors.into_inner()
     }
 
-    pub(crate) fn error_with_hint(
-        &self,
-        message: impl Into<String>,
-        span: Span,
-        hint: impl Into<String>,
-    ) {
-        self.errors
-            .borrow_mut()
-            .push(ParseError::new(message, span).with_hint(hint));
+    pub(crate) fn error_with_hint(&self, message: impl Into<String>, span: Span, hint: impl Into<String>) {
+        self.errors.borrow_mut().push(ParseError::new(message, span).with_hint(hint));
     }
 
     /// The span of a pair, without trailing whitespace and comments.
@@ -68,27 +56,19 @@ impl<'s> Lowerer<'s> {
 
     pub(crate) fn ident(&self, pair: Pair) -> Ident {
         debug_assert_eq!(pair.as_rule(), Rule::ident);
-        Ident {
-            name: pair.as_str().to_owned(),
-            span: self.span(&pair),
-        }
+        Ident { name: pair.as_str().to_owned(), span: self.span(&pair) }
     }
 
     /// Lowers the `file` pair.
     pub(crate) fn file(&self, file: Pair) -> Vec<Item> {
-        file.into_inner()
-            .filter(|p| p.as_rule() != Rule::EOI)
-            .map(|item| self.item(item))
-            .collect()
+        file.into_inner().filter(|p| p.as_rule() != Rule::EOI).map(|item| self.item(item)).collect()
     }
 
     fn item(&self, pair: Pair) -> Item {
         match pair.as_rule() {
             Rule::import => {
                 let span = self.span(&pair);
-                let path = significant(pair.into_inner())
-                    .map(|p| self.ident(p))
-                    .collect();
+                let path = significant(pair.into_inner()).map(|p| self.ident(p)).collect();
                 Item::Import(Import { path, span })
             }
             Rule::const_def => Item::Const(self.const_def(pair)),
@@ -104,12 +84,7 @@ impl<'s> Lowerer<'s> {
         let mut parts = significant(pair.into_inner()).filter(|p| p.as_rule() != Rule::kw_const);
         let name = self.ident(parts.next().expect("grammar: const name"));
         let value = self.expr(parts.next().expect("grammar: const value")).node;
-        ConstDef {
-            doc: self.doc_before(span.start),
-            name,
-            value,
-            span,
-        }
+        ConstDef { doc: self.doc_before(span.start), name, value, span }
     }
 
     fn fn_def(&self, pair: Pair) -> FnDef {
@@ -145,29 +120,15 @@ impl<'s> Lowerer<'s> {
         let name = self.ident(parts.next().expect("grammar: param name"));
         let ty = self.type_expr(parts.next().expect("grammar: param type"));
         let default = parts.next().map(|value| self.expr(value).node);
-        FnParam {
-            is_const,
-            name,
-            ty,
-            default,
-            span,
-        }
+        FnParam { is_const, name, ty, default, span }
     }
 
     fn graph_def(&self, pair: Pair) -> GraphDef {
         let span = self.span(&pair);
         let mut parts = significant(pair.into_inner());
         let name = self.ident(parts.next().expect("grammar: graph name"));
-        let members = parts
-            .filter(|p| p.as_rule() != Rule::semi)
-            .map(|m| self.member(m))
-            .collect();
-        GraphDef {
-            doc: self.doc_before(span.start),
-            name,
-            members,
-            span,
-        }
+        let members = parts.filter(|p| p.as_rule() != Rule::semi).map(|m| self.member(m)).collect();
+        GraphDef { doc: self.doc_before(span.start), name, members, span }
     }
 
     fn member(&self, pair: Pair) -> GraphMember {
@@ -182,9 +143,7 @@ impl<'s> Lowerer<'s> {
         // `let` is the synonym of `node`; the keyword itself means nothing more.
         let mut parts = significant(pair.into_inner()).filter(|p| p.as_rule() != Rule::kw_let);
         match rule {
-            Rule::category => {
-                GraphMember::Category(self.ident(parts.next().expect("grammar: category")), span)
-            }
+            Rule::category => GraphMember::Category(self.ident(parts.next().expect("grammar: category")), span),
             Rule::description => {
                 let string = parts.next().expect("grammar: description text");
                 GraphMember::Description(self.string_literal(&string), span)
@@ -207,9 +166,7 @@ impl<'s> Lowerer<'s> {
         let span = self.span(&pair);
         let mut parts = significant(pair.into_inner());
         let name = self.ident(parts.next().expect("grammar: param name"));
-        let default = self
-            .expr(parts.next().expect("grammar: param default"))
-            .node;
+        let default = self.expr(parts.next().expect("grammar: param default")).node;
         let mut range = None;
         let mut is_int = false;
         for part in parts {
@@ -225,14 +182,7 @@ impl<'s> Lowerer<'s> {
                 other => unreachable!("grammar: unexpected part of param {other:?}"),
             }
         }
-        ParamDef {
-            doc: self.doc_before(span.start),
-            name,
-            default,
-            range,
-            is_int,
-            span,
-        }
+        ParamDef { doc: self.doc_before(span.start), name, default, range, is_int, span }
     }
 
     /// The text of a string literal, escapes resolved: `\"`, `\\`, `\n`, `\t`.
@@ -272,10 +222,7 @@ impl<'s> Lowerer<'s> {
         let mut end = start;
         loop {
             let before = self.src[..end].trim_end_matches([' ', '\t', '\r', '\n']);
-            let Ok(index) = self
-                .doc_lines
-                .binary_search_by_key(&before.len(), |doc| doc.end)
-            else {
+            let Ok(index) = self.doc_lines.binary_search_by_key(&before.len(), |doc| doc.end) else {
                 break;
             };
             let doc = self.doc_lines[index];

@@ -68,18 +68,9 @@ impl Lowerer<'_> {
             }
             // Dropping `kind` here is safe: its children are at most MAX_EXPR_DEPTH deep
             // (anything deeper was already replaced by a placeholder).
-            return Deep {
-                node: Expr {
-                    kind: ExprKind::Float(0.0),
-                    span,
-                },
-                depth,
-            };
+            return Deep { node: Expr { kind: ExprKind::Float(0.0), span }, depth };
         }
-        Deep {
-            node: Expr { kind, span },
-            depth,
-        }
+        Deep { node: Expr { kind, span }, depth }
     }
 
     pub(crate) fn expr(&self, pair: Pair) -> Deep<Expr> {
@@ -89,11 +80,7 @@ impl Lowerer<'_> {
             .map_infix(|lhs, op, rhs| {
                 let span = lhs.node.span.to(rhs.node.span);
                 let below = lhs.depth.max(rhs.depth);
-                let kind = ExprKind::Binary(
-                    binary_op(op.as_rule()),
-                    Box::new(lhs.node),
-                    Box::new(rhs.node),
-                );
+                let kind = ExprKind::Binary(binary_op(op.as_rule()), Box::new(lhs.node), Box::new(rhs.node));
                 self.node(kind, span, below)
             })
             .parse(pair.into_inner())
@@ -197,10 +184,7 @@ impl Lowerer<'_> {
             let mut parts = arg.into_inner().filter(|p| p.as_rule() != Rule::colon);
             let first = parts.next().expect("grammar: arg");
             let (name, value) = if first.as_rule() == Rule::ident {
-                (
-                    Some(self.ident(first)),
-                    self.expr(parts.next().expect("grammar: arg value")),
-                )
+                (Some(self.ident(first)), self.expr(parts.next().expect("grammar: arg value")))
             } else {
                 (None, self.expr(first))
             };
@@ -214,10 +198,7 @@ impl Lowerer<'_> {
                 );
             }
             below = below.max(value.depth);
-            args.push(Arg {
-                name,
-                value: value.node,
-            });
+            args.push(Arg { name, value: value.node });
         }
         self.node(ExprKind::Call(callee, args), span, below)
     }
@@ -227,10 +208,7 @@ impl Lowerer<'_> {
         let span = self.span(&pair);
         let mut fields = Vec::new();
         let mut below = 0;
-        for field in pair
-            .into_inner()
-            .filter(|p| p.as_rule() == Rule::field_init)
-        {
+        for field in pair.into_inner().filter(|p| p.as_rule() == Rule::field_init) {
             let mut parts = field.into_inner().filter(|p| p.as_rule() != Rule::colon);
             let name = self.ident(parts.next().expect("grammar: field name"));
             let value = self.expr(parts.next().expect("grammar: field value"));
@@ -268,21 +246,13 @@ impl Lowerer<'_> {
             let (start, cond, then) = arms.pop().expect("grammar: an `if` has one arm");
             let span = Span::new(start, end);
             let below = cond.depth.max(then.depth).max(otherwise.depth);
-            let kind = ExprKind::If(
-                Box::new(cond.node),
-                Box::new(then.node),
-                Box::new(otherwise.node),
-            );
+            let kind = ExprKind::If(Box::new(cond.node), Box::new(then.node), Box::new(otherwise.node));
             let nested = self.node(kind, span, below);
             if arms.is_empty() {
                 return nested;
             }
             let depth = nested.depth + 1;
-            let block = Block {
-                stmts: Vec::new(),
-                tail: Some(Box::new(nested.node)),
-                span,
-            };
+            let block = Block { stmts: Vec::new(), tail: Some(Box::new(nested.node)), span };
             otherwise = Deep { node: block, depth };
         }
     }
@@ -308,10 +278,7 @@ impl Lowerer<'_> {
                 _ => {} // braces
             }
         }
-        Deep {
-            node: Block { stmts, tail, span },
-            depth: below + 1,
-        }
+        Deep { node: Block { stmts, tail, span }, depth: below + 1 }
     }
 
     fn stmt(&self, pair: Pair) -> Deep<Stmt> {
@@ -332,16 +299,7 @@ impl Lowerer<'_> {
                 };
                 let value = self.expr(next);
                 let depth = value.depth + 1;
-                Deep {
-                    node: Stmt::Let {
-                        mutable,
-                        name,
-                        ty,
-                        value: value.node,
-                        span,
-                    },
-                    depth,
-                }
+                Deep { node: Stmt::Let { mutable, name, ty, value: value.node, span }, depth }
             }
             Rule::assign_stmt => {
                 let target = self.ident(parts.next().expect("grammar: assignment target"));
@@ -354,15 +312,7 @@ impl Lowerer<'_> {
                 };
                 let value = self.expr(parts.next().expect("grammar: assigned value"));
                 let depth = value.depth + 1;
-                Deep {
-                    node: Stmt::Assign {
-                        target,
-                        op,
-                        value: value.node,
-                        span,
-                    },
-                    depth,
-                }
+                Deep { node: Stmt::Assign { target, op, value: value.node, span }, depth }
             }
             Rule::for_stmt => {
                 let var = self.ident(parts.next().expect("grammar: loop variable"));
@@ -370,13 +320,7 @@ impl Lowerer<'_> {
                 let end = self.expr(parts.next().expect("grammar: loop end"));
                 let body = self.block(parts.next().expect("grammar: loop body"));
                 let depth = start.depth.max(end.depth).max(body.depth) + 1;
-                let node = Stmt::For {
-                    var,
-                    start: start.node,
-                    end: end.node,
-                    body: body.node,
-                    span,
-                };
+                let node = Stmt::For { var, start: start.node, end: end.node, body: body.node, span };
                 Deep { node, depth }
             }
             other => unreachable!("grammar: unexpected statement {other:?}"),
@@ -386,9 +330,7 @@ impl Lowerer<'_> {
     /// `float`, `vec2`, … or `(a: float, id: vec2)`.
     pub(crate) fn type_expr(&self, pair: Pair) -> TypeExpr {
         match pair.as_rule() {
-            Rule::type_name => {
-                TypeExpr::Named(self.ident(pair.into_inner().next().expect("grammar: type name")))
-            }
+            Rule::type_name => TypeExpr::Named(self.ident(pair.into_inner().next().expect("grammar: type name"))),
             Rule::record_type => {
                 let span = self.span(&pair);
                 let fields = pair
@@ -397,10 +339,7 @@ impl Lowerer<'_> {
                     .map(|field| {
                         let mut parts = significant(field.into_inner());
                         let name = self.ident(parts.next().expect("grammar: field name"));
-                        (
-                            name,
-                            self.type_expr(parts.next().expect("grammar: field type")),
-                        )
+                        (name, self.type_expr(parts.next().expect("grammar: field type")))
                     })
                     .collect();
                 TypeExpr::Record(fields, span)

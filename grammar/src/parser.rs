@@ -42,10 +42,7 @@ pub fn parse(src: &str) -> Result<File, Vec<ParseError>> {
                 errors.push(error);
                 // Resume at the next item that starts at or after the failure (an
                 // item cut short often fails right at the keyword of the next one).
-                let next = scanned
-                    .item_starts
-                    .iter()
-                    .find(|&&s| s >= failed_at && s > chunk_start);
+                let next = scanned.item_starts.iter().find(|&&s| s >= failed_at && s > chunk_start);
                 match next {
                     Some(&next) => chunk_start = next,
                     None => break,

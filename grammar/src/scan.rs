@@ -50,11 +50,7 @@ pub(crate) fn scan(src: &str) -> Scan {
         open: Vec::new(),
         at_line_start: true,
         brackets_confused: false,
-        out: Scan {
-            errors: Vec::new(),
-            doc_lines: Vec::new(),
-            item_starts: Vec::new(),
-        },
+        out: Scan { errors: Vec::new(), doc_lines: Vec::new(), item_starts: Vec::new() },
     };
     scanner.run();
     scanner.out
@@ -106,10 +102,7 @@ impl Scanner<'_> {
                     self.pos += c.len_utf8();
                 }
                 _ => {
-                    if self.at_line_start
-                        && self.open.is_empty()
-                        && starts_item_keyword(self.rest())
-                    {
+                    if self.at_line_start && self.open.is_empty() && starts_item_keyword(self.rest()) {
                         self.out.item_starts.push(start);
                     }
                     self.at_line_start = false;
@@ -137,10 +130,7 @@ impl Scanner<'_> {
     }
 
     fn control_error(&mut self, at: usize, c: char) {
-        let message = format!(
-            "control character U+{:04X} is not allowed in source text",
-            c as u32
-        );
+        let message = format!("control character U+{:04X} is not allowed in source text", c as u32);
         self.error(message, Span::new(at, at + c.len_utf8()), None);
     }
 
@@ -163,10 +153,7 @@ impl Scanner<'_> {
         if self.at_line_start && text.starts_with("///") && !text.starts_with("////") {
             // Trailing blanks are trimmed so that the lowering can find the line by
             // its end, walking back over blank space from an item.
-            self.out.doc_lines.push(Span::new(
-                start,
-                start + text.trim_end_matches([' ', '\t', '\r']).len(),
-            ));
+            self.out.doc_lines.push(Span::new(start, start + text.trim_end_matches([' ', '\t', '\r']).len()));
         }
         self.check_controls(start, end);
         self.pos = end;
@@ -240,11 +227,7 @@ impl Scanner<'_> {
             }
             _ if self.brackets_confused => {
                 // Keep the stack roughly in step, without reporting.
-                if let Some(depth) = self
-                    .open
-                    .iter()
-                    .rposition(|&(o, _)| matching_close(o) == close)
-                {
+                if let Some(depth) = self.open.iter().rposition(|&(o, _)| matching_close(o) == close) {
                     self.open.truncate(depth);
                 }
                 self.brackets_confused = !self.open.is_empty();
@@ -256,32 +239,17 @@ impl Scanner<'_> {
                     open as char,
                     matching_close(open) as char
                 );
-                self.error(
-                    format!("mismatched `{name}`"),
-                    Span::new(at, at + 1),
-                    Some(&hint),
-                );
+                self.error(format!("mismatched `{name}`"), Span::new(at, at + 1), Some(&hint));
                 // If an outer bracket matches, the inner ones were left unclosed: resume
                 // there. Otherwise the closer is stray.
-                if let Some(depth) = self
-                    .open
-                    .iter()
-                    .rposition(|&(o, _)| matching_close(o) == close)
-                {
+                if let Some(depth) = self.open.iter().rposition(|&(o, _)| matching_close(o) == close) {
                     self.open.truncate(depth);
                 }
                 self.brackets_confused = !self.open.is_empty();
             }
             None => {
-                let hint = format!(
-                    "there is no open `{}` for it to close",
-                    matching_open(close) as char
-                );
-                self.error(
-                    format!("unmatched `{name}`"),
-                    Span::new(at, at + 1),
-                    Some(&hint),
-                );
+                let hint = format!("there is no open `{}` for it to close", matching_open(close) as char);
+                self.error(format!("unmatched `{name}`"), Span::new(at, at + 1), Some(&hint));
             }
         }
     }
@@ -291,15 +259,8 @@ impl Scanner<'_> {
             return;
         }
         for (open, at) in std::mem::take(&mut self.open) {
-            let hint = format!(
-                "no matching `{}` before the end of the file",
-                matching_close(open) as char
-            );
-            self.error(
-                format!("unclosed `{}`", open as char),
-                Span::new(at, at + 1),
-                Some(&hint),
-            );
+            let hint = format!("no matching `{}` before the end of the file", matching_close(open) as char);
+            self.error(format!("unclosed `{}`", open as char), Span::new(at, at + 1), Some(&hint));
         }
     }
 }
@@ -312,10 +273,7 @@ fn is_forbidden_control(c: char) -> bool {
 fn starts_item_keyword(text: &str) -> bool {
     ITEM_KEYWORDS.iter().any(|keyword| {
         text.starts_with(keyword)
-            && !text[keyword.len()..]
-                .chars()
-                .next()
-                .is_some_and(|c| c.is_ascii_alphanumeric() || c == '_')
+            && !text[keyword.len()..].chars().next().is_some_and(|c| c.is_ascii_alphanumeric() || c == '_')
     })
 }
 

@@ -101,14 +101,7 @@ fn describe(rule: Rule) -> (Group, &'static str) {
 
 /// Labels that, when all present, are summarised as one entry.
 const ITEM_STARTS: [&str; 4] = ["`import`", "`const`", "`fn`", "`graph`"];
-const MEMBER_STARTS: [&str; 6] = [
-    "`category`",
-    "`description`",
-    "`param`",
-    "`node` or `let`",
-    "`const`",
-    "`output`",
-];
+const MEMBER_STARTS: [&str; 6] = ["`category`", "`description`", "`param`", "`node` or `let`", "`const`", "`output`"];
 
 /// Turns a pest failure on `src` into our error; spans are shifted by `base`.
 pub(crate) fn translate(error: pest::error::Error<Rule>, src: &str, base: usize) -> ParseError {
@@ -120,10 +113,9 @@ pub(crate) fn translate(error: pest::error::Error<Rule>, src: &str, base: usize)
     match error.variant {
         ErrorVariant::ParsingError { positives, .. } => expected_found(&positives, src, at, base),
         // pest's own guards ("stack limit reached", "call limit reached").
-        ErrorVariant::CustomError { message } => ParseError::new(
-            format!("the input is too complex to parse ({message})"),
-            shift(token_at(src, at).0, base),
-        ),
+        ErrorVariant::CustomError { message } => {
+            ParseError::new(format!("the input is too complex to parse ({message})"), shift(token_at(src, at).0, base))
+        }
     }
 }
 
@@ -135,16 +127,8 @@ fn expected_found(positives: &[Rule], src: &str, at: usize, base: usize) -> Pars
             labels.push(label);
         }
     }
-    summarise(
-        &mut labels,
-        &MEMBER_STARTS,
-        "a graph member (`param`, `node`, `output`, …)",
-    );
-    summarise(
-        &mut labels,
-        &ITEM_STARTS,
-        "`import`, `const`, `fn` or `graph`",
-    );
+    summarise(&mut labels, &MEMBER_STARTS, "a graph member (`param`, `node`, `output`, …)");
+    summarise(&mut labels, &ITEM_STARTS, "`import`, `const`, `fn` or `graph`");
     // An operator is always possible after a complete expression; listing the
     // postfix `.` and `(` as well would only add noise.
     if labels.iter().any(|&(group, _)| group == Group::Operator) {
@@ -169,14 +153,8 @@ fn expected_found(positives: &[Rule], src: &str, at: usize, base: usize) -> Pars
 }
 
 fn summarise(labels: &mut Vec<(Group, &str)>, members: &[&str], summary: &'static str) {
-    if members
-        .iter()
-        .all(|m| labels.iter().any(|&(_, text)| text == *m))
-    {
-        let first = labels
-            .iter()
-            .position(|&(_, text)| members.contains(&text))
-            .unwrap_or(0);
+    if members.iter().all(|m| labels.iter().any(|&(_, text)| text == *m)) {
+        let first = labels.iter().position(|&(_, text)| members.contains(&text)).unwrap_or(0);
         labels.retain(|&(_, text)| !members.contains(&text));
         labels.insert(first.min(labels.len()), (Group::Token, summary));
     }
@@ -186,17 +164,12 @@ fn hint_for(expected: &[&str], src: &str, found: Span) -> Option<String> {
     let found_text = &src[found.start..found.end];
     let is_word = found_text.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_');
     if KEYWORDS.contains(&found_text) && expected.contains(&"a name") {
-        return Some(format!(
-            "`{found_text}` is a keyword and cannot be used as a name"
-        ));
+        return Some(format!("`{found_text}` is a keyword and cannot be used as a name"));
     }
     if found_text == "int" && expected.contains(&"`in`") {
         return Some("`int` comes after the range: `param n = 4 in [1, 8] int`".to_owned());
     }
-    if is_word
-        && !KEYWORDS.contains(&found_text)
-        && expected.iter().any(|e| e.starts_with("a graph member"))
-    {
+    if is_word && !KEYWORDS.contains(&found_text) && expected.iter().any(|e| e.starts_with("a graph member")) {
         return Some(format!(
             "graph members start with a keyword: `output {found_text} = …`, `node {found_text} = …`, `param {found_text} = …`"
         ));
@@ -209,25 +182,22 @@ fn hint_for(expected: &[&str], src: &str, found: Span) -> Option<String> {
             return Some(format!("is a `;` missing at the end of line {line}?"));
         }
     }
-    if found_text == "}"
-        && expected.contains(&"`let`, `var`")
-        && expected.contains(&"an expression")
-    {
+    if found_text == "}" && expected.contains(&"`let`, `var`") && expected.contains(&"an expression") {
         return Some("a block ends with its value: an expression without `;`".to_owned());
     }
     if found_text == ";" && expected.first() == Some(&"`}`") {
         return Some("the last expression of a block is its value and takes no `;`".to_owned());
     }
     if found_text == "}" && expected.contains(&"`=`, `+=`, `-=`, `*=` or `/=`") {
-        return Some("a `for` body has no value: it holds only statements (`let`, `var`, assignments, `for`)".to_owned());
+        return Some(
+            "a `for` body has no value: it holds only statements (`let`, `var`, assignments, `for`)".to_owned(),
+        );
     }
     if expected.contains(&"`else`") {
         return Some("`if` is an expression: it needs an `else` branch".to_owned());
     }
     if expected.first() == Some(&"`->`") {
-        return Some(
-            "a function declares its result type: `fn f(x: float) -> float { … }`".to_owned(),
-        );
+        return Some("a function declares its result type: `fn f(x: float) -> float { … }`".to_owned());
     }
     None
 }
@@ -244,9 +214,7 @@ fn shift(span: Span, base: usize) -> Span {
     Span::new(span.start + base, span.end + base)
 }
 
-const MULTI_CHAR_PUNCTUATION: [&str; 12] = [
-    "->", "..", "==", "!=", "<=", ">=", "&&", "||", "+=", "-=", "*=", "/=",
-];
+const MULTI_CHAR_PUNCTUATION: [&str; 12] = ["->", "..", "==", "!=", "<=", ">=", "&&", "||", "+=", "-=", "*=", "/="];
 
 /// The token starting at `at` (a char boundary): its span and how to show it.
 pub(crate) fn token_at(src: &str, at: usize) -> (Span, String) {
@@ -256,32 +224,19 @@ pub(crate) fn token_at(src: &str, at: usize) -> (Span, String) {
     };
     let len = if first.is_ascii_alphanumeric() || first == '_' {
         // A word or a number (including `1.5e-3`, roughly: enough to show it).
-        let mut len = rest
-            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
-            .unwrap_or(rest.len());
+        let mut len = rest.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(rest.len());
         if first.is_ascii_digit() && rest[len..].starts_with('.') {
             let frac = &rest[len + 1..];
-            let digits = frac
-                .find(|c: char| !c.is_ascii_alphanumeric())
-                .unwrap_or(frac.len());
+            let digits = frac.find(|c: char| !c.is_ascii_alphanumeric()).unwrap_or(frac.len());
             if digits > 0 {
                 len += 1 + digits;
             }
         }
         len
     } else if first == '"' {
-        rest[1..].find(['"', '\n']).map_or(rest.len(), |i| {
-            if rest.as_bytes()[1 + i] == b'"' {
-                i + 2
-            } else {
-                i + 1
-            }
-        })
+        rest[1..].find(['"', '\n']).map_or(rest.len(), |i| if rest.as_bytes()[1 + i] == b'"' { i + 2 } else { i + 1 })
     } else {
-        MULTI_CHAR_PUNCTUATION
-            .iter()
-            .find(|p| rest.starts_with(*p))
-            .map_or(first.len_utf8(), |p| p.len())
+        MULTI_CHAR_PUNCTUATION.iter().find(|p| rest.starts_with(*p)).map_or(first.len_utf8(), |p| p.len())
     };
     let text = &rest[..len];
     let shown = if KEYWORDS.contains(&text) {

@@ -29,16 +29,12 @@ fn missing_semicolon_after_const() {
 
 #[test]
 fn unterminated_block_comment() {
-    insta::assert_snapshot!(errors_of(
-        "const A = 1;\n/* the end is\nnever reached\nconst B = 2;\n"
-    ));
+    insta::assert_snapshot!(errors_of("const A = 1;\n/* the end is\nnever reached\nconst B = 2;\n"));
 }
 
 #[test]
 fn unterminated_string() {
-    insta::assert_snapshot!(errors_of(
-        "graph g {\n    description \"Oak floor\n    output roughness = 0.5\n}\n"
-    ));
+    insta::assert_snapshot!(errors_of("graph g {\n    description \"Oak floor\n    output roughness = 0.5\n}\n"));
 }
 
 #[test]
@@ -95,9 +91,7 @@ fn binary_garbage() {
 
 #[test]
 fn missing_else() {
-    insta::assert_snapshot!(errors_of(
-        "fn f(x: float) -> float { if x > 0.0 { 1.0 } }\n"
-    ));
+    insta::assert_snapshot!(errors_of("fn f(x: float) -> float { if x > 0.0 { 1.0 } }\n"));
 }
 
 #[test]
@@ -117,9 +111,7 @@ fn unknown_graph_member() {
 
 #[test]
 fn loop_body_has_no_value() {
-    insta::assert_snapshot!(errors_of(
-        "fn f() -> float {\n    var s = 0.0;\n    for i in 0..4 { s }\n    s\n}\n"
-    ));
+    insta::assert_snapshot!(errors_of("fn f() -> float {\n    var s = 0.0;\n    for i in 0..4 { s }\n    s\n}\n"));
 }
 
 #[test]
@@ -156,11 +148,5 @@ const D = 1e999;
 #[test]
 fn empty_file_is_ok() {
     assert_eq!(parse("").unwrap().items.len(), 0);
-    assert_eq!(
-        parse("  // only a comment\n/* and another */\n")
-            .unwrap()
-            .items
-            .len(),
-        0
-    );
+    assert_eq!(parse("  // only a comment\n/* and another */\n").unwrap().items.len(), 0);
 }

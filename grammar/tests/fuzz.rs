@@ -99,10 +99,7 @@ const TOKENS: &[&str] = &[
 ];
 
 fn cases() -> u32 {
-    std::env::var("PSC_FUZZ_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(2000)
+    std::env::var("PSC_FUZZ_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(2000)
 }
 
 /// Parses `src` and checks the invariants; what the tests assert for every input.
@@ -121,11 +118,7 @@ fn check(src: &str) {
 
 /// Runs `strategy` for the configured number of cases; returns how many ran.
 fn run<S: Strategy<Value = String>>(name: &str, strategy: S) -> u32 {
-    let config = Config {
-        cases: cases(),
-        failure_persistence: None,
-        ..Config::default()
-    };
+    let config = Config { cases: cases(), failure_persistence: None, ..Config::default() };
     let mut runner = TestRunner::new(config);
     let count = std::cell::Cell::new(0);
     let result = runner.run(&strategy, |src| {
@@ -141,8 +134,7 @@ fn run<S: Strategy<Value = String>>(name: &str, strategy: S) -> u32 {
 }
 
 fn random_bytes() -> impl Strategy<Value = String> {
-    prop::collection::vec(any::<u8>(), 0..400)
-        .prop_map(|bytes| String::from_utf8_lossy(&bytes).into_owned())
+    prop::collection::vec(any::<u8>(), 0..400).prop_map(|bytes| String::from_utf8_lossy(&bytes).into_owned())
 }
 
 fn token_soup() -> impl Strategy<Value = String> {
@@ -157,24 +149,17 @@ fn balanced_soup() -> impl Strategy<Value = String> {
     let clean: Vec<&'static str> = TOKENS
         .iter()
         .copied()
-        .filter(|t| {
-            !t.contains(['(', ')', '{', '}', '[', ']', '\0', '"'])
-                && !t.starts_with("/*")
-                && *t != "*/"
-        })
+        .filter(|t| !t.contains(['(', ')', '{', '}', '[', ']', '\0', '"']) && !t.starts_with("/*") && *t != "*/")
         .collect();
     let leaf = prop::collection::vec(prop::sample::select(clean), 0..6).prop_map(|t| t.join(" "));
     leaf.prop_recursive(6, 64, 6, |inner| {
-        (
-            prop::sample::select(&["()", "{}", "[]"][..]),
-            prop::collection::vec(inner, 0..6),
-            any::<bool>(),
-        )
-            .prop_map(|(brackets, parts, newline)| {
+        (prop::sample::select(&["()", "{}", "[]"][..]), prop::collection::vec(inner, 0..6), any::<bool>()).prop_map(
+            |(brackets, parts, newline)| {
                 let (open, close) = brackets.split_at(1);
                 let separator = if newline { "\n" } else { " " };
                 format!("{open}{}{close}", parts.join(separator))
-            })
+            },
+        )
     })
     .prop_map(|body| {
         // Mostly inside an item, so that expressions and statements get exercised.
@@ -209,9 +194,7 @@ fn mutated_sample() -> impl Strategy<Value = String> {
                     text.insert_str(at, &slice);
                 }
                 Mutation::InsertToken(token) => text.insert_str(at, token),
-                Mutation::InsertBytes(bytes) => {
-                    text.insert_str(at, &String::from_utf8_lossy(&bytes))
-                }
+                Mutation::InsertBytes(bytes) => text.insert_str(at, &String::from_utf8_lossy(&bytes)),
             }
         }
         text

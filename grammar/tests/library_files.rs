@@ -31,16 +31,8 @@ fn every_library_file_parses() {
     for file in &files {
         let src = std::fs::read_to_string(file).unwrap();
         if let Err(errors) = psc_grammar::parse(&src) {
-            failures += &format!(
-                "{}:\n{}",
-                file.display(),
-                support::render_errors(&src, &errors)
-            );
+            failures += &format!("{}:\n{}", file.display(), support::render_errors(&src, &errors));
         }
     }
-    assert!(
-        failures.is_empty(),
-        "{} files, failures:\n{failures}",
-        files.len()
-    );
+    assert!(failures.is_empty(), "{} files, failures:\n{failures}", files.len());
 }

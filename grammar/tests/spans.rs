@@ -30,24 +30,15 @@ fn every_span_is_valid_and_names_match() {
     });
     assert!(count > 200, "visited only {count} nodes");
     for text in texts_of("ident") {
-        assert!(
-            text.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'),
-            "ident span {text:?}"
-        );
+        assert!(text.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'), "ident span {text:?}");
     }
 }
 
 #[test]
 fn item_spans() {
-    assert_eq!(
-        texts_of("import"),
-        ["import std.noise;", "import std.cells.voronoi;"]
-    );
+    assert_eq!(texts_of("import"), ["import std.noise;", "import std.cells.voronoi;"]);
     let consts = texts_of("const");
-    assert_eq!(
-        consts[..2],
-        ["const TAU = 6.2831853;", "const OCTAVES = 4;"]
-    );
+    assert_eq!(consts[..2], ["const TAU = 6.2831853;", "const OCTAVES = 4;"]);
     // A graph-level const has no `;` to include.
     assert_eq!(consts[2], "const K = 2.5");
     let fns = texts_of("fn");
@@ -59,15 +50,9 @@ fn item_spans() {
 #[test]
 fn fn_part_spans() {
     let params = texts_of("fn_param");
-    assert_eq!(
-        params[..3],
-        ["p: vec2", "const octaves: int = 4", "k: float = 1.0"]
-    );
+    assert_eq!(params[..3], ["p: vec2", "const octaves: int = 4", "k: float = 1.0"]);
     assert!(texts_of("type").contains(&"(f1: float, id: vec2)"));
-    assert_eq!(
-        texts_of("let")[..2],
-        ["let r = length(p);", "var acc = 0.0;"]
-    );
+    assert_eq!(texts_of("let")[..2], ["let r = length(p);", "var acc = 0.0;"]);
     assert_eq!(texts_of("assign")[0], "acc += sin(r * k * float(i + 1));");
     let for_loop = texts_of("for")[0];
     assert!(for_loop.starts_with("for i in 0..octaves {") && for_loop.ends_with('}'));
@@ -97,10 +82,7 @@ fn expression_spans() {
         "-grain",
         "1e9",
     ] {
-        assert!(
-            exprs.contains(&expected),
-            "no expression spans {expected:?}"
-        );
+        assert!(exprs.contains(&expected), "no expression spans {expected:?}");
     }
 }
 
@@ -114,15 +96,9 @@ fn graph_member_spans() {
     let members = texts_of("member");
     assert_eq!(members[0], "node cells = brick(uv, rows: planks)");
     assert_eq!(members[1], "let grain = ring(uv - 0.5, octaves: 3) * K");
-    assert_eq!(
-        members.last().unwrap(),
-        &"output height    = 0.01 * cells.f1 + -grain % 2"
-    );
+    assert_eq!(members.last().unwrap(), &"output height    = 0.01 * cells.f1 + -grain % 2");
     assert_eq!(texts_of("category"), ["category wood"]);
-    assert_eq!(
-        texts_of("description"),
-        ["description \"Oak floor \\\"planks\\\"\""]
-    );
+    assert_eq!(texts_of("description"), ["description \"Oak floor \\\"planks\\\"\""]);
 }
 
 #[test]
@@ -134,9 +110,7 @@ fn spans_are_byte_offsets_past_multibyte_text() {
     assert!(parse(src).is_err(), "non-ASCII names are not identifiers");
     let src = "/* ünïcödé */ const B = 2.0;";
     let file = parse(src).unwrap();
-    let Item::Const(c) = &file.items[0] else {
-        panic!()
-    };
+    let Item::Const(c) = &file.items[0] else { panic!() };
     assert_eq!(&src[c.span.start..c.span.end], "const B = 2.0;");
     assert_eq!(&src[c.value.span.start..c.value.span.end], "2.0");
 }
@@ -182,9 +156,7 @@ graph g {
             None
         ]
     );
-    let Item::Graph(g) = &file.items[4] else {
-        panic!()
-    };
+    let Item::Graph(g) = &file.items[4] else { panic!() };
     let param_docs: Vec<Option<&str>> = g
         .members
         .iter()

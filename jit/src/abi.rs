@@ -60,7 +60,13 @@ impl NativeKernel {
 
     /// Runs the kernel over `n` points. Re-checks every length the generated code relies on,
     /// so this is safe to call with any arguments.
-    pub(crate) fn call(&self, params: &[f32], inputs: &[&[f32]], outputs: &mut [&mut [f32]], n: usize) -> Result<(), JitError> {
+    pub(crate) fn call(
+        &self,
+        params: &[f32],
+        inputs: &[&[f32]],
+        outputs: &mut [&mut [f32]],
+        n: usize,
+    ) -> Result<(), JitError> {
         let ok = params.len() >= self.num_params
             && inputs.len() == self.num_inputs
             && outputs.len() == self.num_outputs

@@ -103,12 +103,10 @@ fn define(a: &mut Lanes, program: &Program, groups: usize, ptr: Type) {
         (p[0], p[1], p[2], p[3])
     };
     let ptr_bytes = ptr.bytes() as i32;
-    let in_cols: Vec<Value> = (0..2 + program.num_seeds)
-        .map(|k| b.ins().load(ptr, mem(), inputs, ptr_bytes * k as i32))
-        .collect();
-    let out_cols: Vec<Value> = (0..program.outputs.len())
-        .map(|k| b.ins().load(ptr, mem(), outputs, ptr_bytes * k as i32))
-        .collect();
+    let in_cols: Vec<Value> =
+        (0..2 + program.num_seeds).map(|k| b.ins().load(ptr, mem(), inputs, ptr_bytes * k as i32)).collect();
+    let out_cols: Vec<Value> =
+        (0..program.outputs.len()).map(|k| b.ins().load(ptr, mem(), outputs, ptr_bytes * k as i32)).collect();
     let header = b.create_block();
     let body = b.create_block();
     let tail_header = b.create_block();

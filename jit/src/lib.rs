@@ -125,7 +125,14 @@ impl CompiledKernel {
     ///
     /// Requires `params.len() >= num_params`, `v`, every seed column and every output column
     /// as long as `u`, exactly `num_seeds` seed columns and `num_outputs` output columns.
-    pub fn run(&self, params: &[f32], u: &[f32], v: &[f32], seeds: &[&[f32]], outputs: &mut [&mut [f32]]) -> Result<(), JitError> {
+    pub fn run(
+        &self,
+        params: &[f32],
+        u: &[f32],
+        v: &[f32],
+        seeds: &[&[f32]],
+        outputs: &mut [&mut [f32]],
+    ) -> Result<(), JitError> {
         let n = u.len();
         let shape = |m: String| Err(JitError::Shape(m));
         if params.len() < self.num_params {
@@ -141,7 +148,11 @@ impl CompiledKernel {
             return shape(format!("seed column {s} has {} points, u has {n}", c.len()));
         }
         if outputs.len() != self.output_names.len() {
-            return shape(format!("{} output columns given, the program has {}", outputs.len(), self.output_names.len()));
+            return shape(format!(
+                "{} output columns given, the program has {}",
+                outputs.len(),
+                self.output_names.len()
+            ));
         }
         if let Some((o, c)) = outputs.iter().enumerate().find(|(_, c)| c.len() != n) {
             return shape(format!("output column {o} has {} points, u has {n}", c.len()));

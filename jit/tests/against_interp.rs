@@ -15,7 +15,13 @@ use psc_compiler::interp;
 use psc_compiler::ir::{Builder, NodeId, Output, Program};
 use psc_jit::{compile_with, mirror_eval_point, OptLevel, Options};
 
-fn points(seed: u64, n: usize, num_params: usize, num_seeds: usize, nasty: bool) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<Vec<f32>>) {
+fn points(
+    seed: u64,
+    n: usize,
+    num_params: usize,
+    num_seeds: usize,
+    nasty: bool,
+) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<Vec<f32>>) {
     let mut r = Rng(seed);
     let draw = |r: &mut Rng| if nasty { r.nasty() } else { r.uniform(-1.0, 1.0) };
     let u = (0..n).map(|_| draw(&mut r)).collect();
@@ -153,6 +159,7 @@ fn smooth_program(choices: &[(u8, u32, u32)]) -> Program {
         };
         pool.push(node);
     }
-    let outputs = pool.iter().rev().take(3).enumerate().map(|(k, &node)| Output { name: format!("o{k}"), node }).collect();
+    let outputs =
+        pool.iter().rev().take(3).enumerate().map(|(k, &node)| Output { name: format!("o{k}"), node }).collect();
     b.finish(outputs)
 }

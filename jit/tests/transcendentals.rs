@@ -15,7 +15,9 @@ fn unary(f: fn(&mut Builder, psc_compiler::ir::NodeId) -> psc_compiler::ir::Node
     b.finish(vec![Output { name: "y".into(), node: y }])
 }
 
-fn binary(f: fn(&mut Builder, psc_compiler::ir::NodeId, psc_compiler::ir::NodeId) -> psc_compiler::ir::NodeId) -> Program {
+fn binary(
+    f: fn(&mut Builder, psc_compiler::ir::NodeId, psc_compiler::ir::NodeId) -> psc_compiler::ir::NodeId,
+) -> Program {
     let mut b = Builder::new();
     let u = b.u();
     let v = b.v();
@@ -36,7 +38,10 @@ fn sweep(lo: f64, hi: f64, n: usize) -> Vec<f32> {
 /// `n` points log-spaced over [lo, hi] (both > 0).
 fn log_sweep(lo: f64, hi: f64, n: usize) -> Vec<f32> {
     let (a, b) = (lo.ln(), hi.ln());
-    (0..n).map(|i| (a + (b - a) * i as f64 / (n - 1) as f64).exp() as f32).filter(|x| *x > 0.0 && x.is_finite()).collect()
+    (0..n)
+        .map(|i| (a + (b - a) * i as f64 / (n - 1) as f64).exp() as f32)
+        .filter(|x| *x > 0.0 && x.is_finite())
+        .collect()
 }
 
 fn max_abs_err(xs: &[f32], got: &[f32], f: impl Fn(f64) -> f64) -> (f64, f32) {
@@ -145,7 +150,9 @@ fn atan2_abs_error_below_1e_6() {
     }
     println!("atan2 max abs err {:e} at y={} x={}", worst.0, worst.1, worst.2);
     assert!(worst.0 < 1e-6, "atan2 error {:e} at y={} x={}", worst.0, worst.1, worst.2);
-    let special = run_jit(&k, &[], &[0.0, -0.0, f32::INFINITY, f32::NAN, 1.0], &[0.0, 0.0, f32::INFINITY, 1.0, f32::NAN], &[]).remove(0);
+    let special =
+        run_jit(&k, &[], &[0.0, -0.0, f32::INFINITY, f32::NAN, 1.0], &[0.0, 0.0, f32::INFINITY, 1.0, f32::NAN], &[])
+            .remove(0);
     assert_eq!(special[0], 0.0);
     assert_eq!(special[1], 0.0);
     assert!((special[2] - std::f32::consts::FRAC_PI_4).abs() < 1e-7);
@@ -181,7 +188,14 @@ fn pow_rel_error_within_stated_bound() {
     }
     println!("pow worst error / bound = {:.3} at a={} b={}", worst.0, worst.1, worst.2);
     assert!(worst.0 < 1.0, "pow error exceeds 2e-6 + 2e-7|b ln a| by {:.3}x at a={} b={}", worst.0, worst.1, worst.2);
-    let special = run_jit(&k, &[], &[-2.0, 0.0, f32::NAN, 1.0, 5.0, f32::INFINITY, f32::INFINITY, 0.5], &[2.0, 3.0, 0.0, f32::NAN, 0.0, 2.0, -2.0, f32::INFINITY], &[]).remove(0);
+    let special = run_jit(
+        &k,
+        &[],
+        &[-2.0, 0.0, f32::NAN, 1.0, 5.0, f32::INFINITY, f32::INFINITY, 0.5],
+        &[2.0, 3.0, 0.0, f32::NAN, 0.0, 2.0, -2.0, f32::INFINITY],
+        &[],
+    )
+    .remove(0);
     assert_eq!(special, vec![0.0, 0.0, 0.0, 1.0, 1.0, f32::INFINITY, 0.0, 0.0]);
     // Subnormal bases take the scaled path of the log.
     let sub = run_jit(&k, &[], &[1e-40, 3e-44], &[0.5, 0.25], &[]).remove(0);

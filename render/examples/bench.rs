@@ -33,7 +33,8 @@ fn main() {
     let t0 = std::time::Instant::now();
     let scene = Scene::load_with_mesh(&dir, truth::truth_mesh(&dir).as_deref()).expect("scene");
     let mut warnings = Vec::new();
-    let materials = truth::truth_materials(&scene, &mut warnings).unwrap_or_else(|_| scene.mtl_materials(&mut warnings));
+    let materials =
+        truth::truth_materials(&scene, &mut warnings).unwrap_or_else(|_| scene.mtl_materials(&mut warnings));
     let radiances = LightRadiances::resolve(&scene, None, &mut warnings).expect("radiances");
     let r = Renderer::new(&scene, materials, &radiances).expect("renderer");
     let load = (t0.elapsed().as_secs_f64(), cpu_seconds() - c0);
@@ -48,7 +49,11 @@ fn main() {
     let r_cpu = cpu_seconds() - c2;
     let n_threads = threads.unwrap_or_else(rayon::current_num_threads);
     let samples = (w * h) as f64 * spp as f64;
-    println!("scene {} ({} triangles), {w}x{h}, {spp} spp, max_depth 6, {n_threads} threads", dir.display(), scene.mesh.triangles.len());
+    println!(
+        "scene {} ({} triangles), {w}x{h}, {spp} spp, max_depth 6, {n_threads} threads",
+        dir.display(),
+        scene.mesh.triangles.len()
+    );
     println!("load + BVH:   {:.3} s wall, {:.3} s CPU", load.0, load.1);
     println!(
         "primary rays: {:.2} Mrays/s wall, {:.2} Mrays per CPU s ({primary} rays)",

@@ -22,7 +22,7 @@ pub const MIN_ROUGHNESS: f32 = 0.02;
 /// Karis' spherical-Gaussian Schlick Fresnel, `v_h` = cos of the angle between v and h.
 #[inline]
 pub fn fresnel(v_h: f32) -> f32 {
-    F0 + (1.0 - F0) * (( -5.55473 * v_h - 6.98316) * v_h).exp2()
+    F0 + (1.0 - F0) * ((-5.55473 * v_h - 6.98316) * v_h).exp2()
 }
 
 /// GGX normal distribution with α = r².

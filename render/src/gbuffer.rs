@@ -67,7 +67,14 @@ pub fn render_gbuffer(
                 Traced::Emitter { light, n, t } => {
                     let nn = if n.dot(d) < 0.0 { n } else { -n };
                     let p = camera.position + d * t;
-                    Px { id: (n_parts + 1 + light) as u16, ng: nn.to_array(), ns: nn.to_array(), depth: t, p: p.to_array(), ..Default::default() }
+                    Px {
+                        id: (n_parts + 1 + light) as u16,
+                        ng: nn.to_array(),
+                        ns: nn.to_array(),
+                        depth: t,
+                        p: p.to_array(),
+                        ..Default::default()
+                    }
                 }
                 Traced::Surface(hit) => {
                     let tn = materials.map_or([0.0, 0.0, 1.0], |m| m[hit.part as usize].eval(hit.uv).normal);
@@ -154,7 +161,11 @@ impl GBuffer {
 
 /// Fraction of labelled pixels (label ≠ 0 with a name in `part_labels`) whose G-buffer part has
 /// that name. Returns (agreeing, labelled).
-pub fn label_agreement(gb: &GBuffer, labels: &[u16], part_labels: &std::collections::BTreeMap<u16, String>) -> (usize, usize) {
+pub fn label_agreement(
+    gb: &GBuffer,
+    labels: &[u16],
+    part_labels: &std::collections::BTreeMap<u16, String>,
+) -> (usize, usize) {
     let mut agree = 0;
     let mut total = 0;
     for (i, &l) in labels.iter().enumerate() {

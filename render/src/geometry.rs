@@ -31,7 +31,11 @@ pub enum Traced {
     Miss,
     Surface(SurfaceHit),
     /// An emitter triangle: light index, its unit emitting normal, distance.
-    Emitter { light: u32, n: Vec3, t: f32 },
+    Emitter {
+        light: u32,
+        n: Vec3,
+        t: f32,
+    },
 }
 
 /// Oriented shading geometry at a hit, for an outgoing direction.
@@ -125,7 +129,9 @@ impl SceneGeometry {
         let i = h.prim as usize;
         let v = self.tri_v[i];
         let b0 = 1.0 - h.b1 - h.b2;
-        let p = self.positions[v[0] as usize] * b0 + self.positions[v[1] as usize] * h.b1 + self.positions[v[2] as usize] * h.b2;
+        let p = self.positions[v[0] as usize] * b0
+            + self.positions[v[1] as usize] * h.b1
+            + self.positions[v[2] as usize] * h.b2;
         let uvs = v.map(|k| self.uvs[k as usize]);
         let uv = [
             uvs[0][0] * b0 + uvs[1][0] * h.b1 + uvs[2][0] * h.b2,
@@ -135,7 +141,9 @@ impl SceneGeometry {
         let ns = if self.normals.is_empty() {
             ng
         } else {
-            let n = self.normals[v[0] as usize] * b0 + self.normals[v[1] as usize] * h.b1 + self.normals[v[2] as usize] * h.b2;
+            let n = self.normals[v[0] as usize] * b0
+                + self.normals[v[1] as usize] * h.b1
+                + self.normals[v[2] as usize] * h.b2;
             n.try_normalize().unwrap_or(ng)
         };
         let (dpdu, dpdv) = self.tri_dpduv[i];

@@ -16,13 +16,21 @@ pub struct RgbImage {
 
 #[inline]
 pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
 }
 
 #[inline]
 pub fn linear_to_srgb(c: f32) -> f32 {
     let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
-    if c <= 0.003_130_8 { c * 12.92 } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 }
+    if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
 }
 
 fn is_exr(path: &Path) -> bool {
@@ -53,7 +61,11 @@ pub fn read_rgb(path: &Path, srgb: bool) -> Result<RgbImage, RenderError> {
     if is_exr(path) {
         let img = exr::prelude::read_first_rgba_layer_from_file(
             path,
-            |res, _| RgbImage { width: res.width(), height: res.height(), data: vec![[0.0; 3]; res.width() * res.height()] },
+            |res, _| RgbImage {
+                width: res.width(),
+                height: res.height(),
+                data: vec![[0.0; 3]; res.width() * res.height()],
+            },
             |img: &mut RgbImage, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
                 let w = img.width;
                 img.data[pos.y() * w + pos.x()] = [r, g, b];
@@ -81,7 +93,10 @@ pub fn read_labels(path: &Path) -> Result<(usize, usize, Vec<u16>), RenderError>
         image::DynamicImage::ImageLuma8(b) => b.into_raw().into_iter().map(u16::from).collect(),
         image::DynamicImage::ImageLuma16(b) => b.into_raw(),
         other => {
-            return Err(RenderError::image(path, format!("a label image must be 8- or 16-bit grayscale, this one is {:?}", other.color())));
+            return Err(RenderError::image(
+                path,
+                format!("a label image must be 8- or 16-bit grayscale, this one is {:?}", other.color()),
+            ));
         }
     };
     Ok((w, h, data))
@@ -125,7 +140,8 @@ pub fn encode_exr(width: usize, height: usize, data: &[[f32; 3]]) -> Result<Vec<
 
 fn encode_png(img: image::DynamicImage) -> Result<Vec<u8>, RenderError> {
     let mut buf = Cursor::new(Vec::new());
-    img.write_to(&mut buf, image::ImageFormat::Png).map_err(|e| RenderError::Invalid(format!("PNG encoding failed: {e}")))?;
+    img.write_to(&mut buf, image::ImageFormat::Png)
+        .map_err(|e| RenderError::Invalid(format!("PNG encoding failed: {e}")))?;
     Ok(buf.into_inner())
 }
 
@@ -136,20 +152,23 @@ pub fn write_rgb(path: &Path, width: usize, height: usize, data: &[[f32; 3]]) ->
     let bytes = match ext.as_deref() {
         Some("exr") => encode_exr(width, height, data)?,
         Some("png") => {
-            let raw: Vec<u8> = data
-                .iter()
-                .flat_map(|p| p.map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8))
-                .collect();
+            let raw: Vec<u8> = data.iter().flat_map(|p| p.map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8)).collect();
             let buf = image::RgbImage::from_raw(width as u32, height as u32, raw).expect("sized buffer");
             encode_png(image::DynamicImage::ImageRgb8(buf))?
         }
-        _ => return Err(RenderError::Invalid(format!("{}: output must end in .exr (linear) or .png (sRGB)", path.display()))),
+        _ => {
+            return Err(RenderError::Invalid(format!(
+                "{}: output must end in .exr (linear) or .png (sRGB)",
+                path.display()
+            )))
+        }
     };
     atomic_write(path, &bytes)
 }
 
 /// Write a 16-bit grayscale PNG (label images, part ids).
 pub fn write_gray16(path: &Path, width: usize, height: usize, data: &[u16]) -> Result<(), RenderError> {
-    let buf = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(width as u32, height as u32, data.to_vec()).expect("sized buffer");
+    let buf = image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(width as u32, height as u32, data.to_vec())
+        .expect("sized buffer");
     atomic_write(path, &encode_png(image::DynamicImage::ImageLuma16(buf))?)
 }

@@ -58,13 +58,29 @@ pub struct PathConfig {
 
 impl RenderOptions {
     pub fn path_config(&self) -> PathConfig {
-        PathConfig { max_depth: self.max_depth, rr_depth: self.rr_depth, per_light: self.per_light, diffuse_only: self.diffuse_only }
+        PathConfig {
+            max_depth: self.max_depth,
+            rr_depth: self.rr_depth,
+            per_light: self.per_light,
+            diffuse_only: self.diffuse_only,
+        }
     }
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
-        RenderOptions { width: 320, height: 240, spp: 64, seed: 0, max_depth: 6, rr_depth: 5, threads: None, progress: false, per_light: false, diffuse_only: false }
+        RenderOptions {
+            width: 320,
+            height: 240,
+            spp: 64,
+            seed: 0,
+            max_depth: 6,
+            rr_depth: 5,
+            threads: None,
+            progress: false,
+            per_light: false,
+            diffuse_only: false,
+        }
     }
 }
 
@@ -106,7 +122,11 @@ fn luminance(c: Vec3) -> f32 {
 #[inline]
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let (a2, b2) = (a * a, b * b);
-    if a2 + b2 > 0.0 { a2 / (a2 + b2) } else { 0.0 }
+    if a2 + b2 > 0.0 {
+        a2 / (a2 + b2)
+    } else {
+        0.0
+    }
 }
 
 /// Per-thread counters and the slot accumulator of one estimate.
@@ -118,7 +138,11 @@ pub struct PathState<'a> {
 
 impl Renderer {
     /// `materials` has one binding per model part (same order as `scene.mesh.part_names`).
-    pub fn new(scene: &Scene, materials: Vec<MaterialBinding>, radiances: &LightRadiances) -> Result<Self, RenderError> {
+    pub fn new(
+        scene: &Scene,
+        materials: Vec<MaterialBinding>,
+        radiances: &LightRadiances,
+    ) -> Result<Self, RenderError> {
         if materials.len() != scene.mesh.part_names.len() {
             return Err(RenderError::Invalid(format!(
                 "{} material bindings for {} parts",
@@ -127,7 +151,11 @@ impl Renderer {
             )));
         }
         if radiances.lights.len() != scene.lights.len() {
-            return Err(RenderError::Invalid(format!("{} light radiances for {} lights", radiances.lights.len(), scene.lights.len())));
+            return Err(RenderError::Invalid(format!(
+                "{} light radiances for {} lights",
+                radiances.lights.len(),
+                scene.lights.len()
+            )));
         }
         let lights = AreaLights::new(&scene.lights);
         let geometry = SceneGeometry::new(scene, &lights);
@@ -144,7 +172,13 @@ impl Renderer {
             if scene.environment.is_some() {
                 let s: f32 = w.iter().sum();
                 let env_on = unit || luminance(slot_radiance[lights.len()]) > 0.0;
-                w.push(if !env_on { 0.0 } else if s > 0.0 { s } else { 1.0 });
+                w.push(if !env_on {
+                    0.0
+                } else if s > 0.0 {
+                    s
+                } else {
+                    1.0
+                });
             }
             Distribution1D::new(&w)
         };
@@ -167,7 +201,11 @@ impl Renderer {
     }
 
     fn selection(&self, per_light: bool) -> &Distribution1D {
-        if per_light { &self.select_unit } else { &self.select_power }
+        if per_light {
+            &self.select_unit
+        } else {
+            &self.select_power
+        }
     }
 
     /// Radiance arriving at `o` from direction `-d` (d unit, leaving `o`), accumulated per slot
@@ -184,7 +222,11 @@ impl Renderer {
             let hit = match self.geometry.trace(o, d, f32::INFINITY) {
                 Traced::Miss => {
                     if let Some(env) = &self.env {
-                        let w = if prev_pdf > 0.0 { power_heuristic(prev_pdf, sel.pmf(n_lights) * env.pdf(d)) } else { 1.0 };
+                        let w = if prev_pdf > 0.0 {
+                            power_heuristic(prev_pdf, sel.pmf(n_lights) * env.pdf(d))
+                        } else {
+                            1.0
+                        };
                         st.out[n_lights] += beta * env.eval(d) * w;
                     }
                     return;
@@ -332,15 +374,29 @@ impl Renderer {
             .collect();
         let image = if ns == 0 { vec![[0.0; 3]; w * h] } else { image };
         let per_light = if opts.per_light {
-            (0..ns).map(|k| (self.slot_names[k].clone(), (0..w * h).map(|i| slots[i * ns + k].to_array()).collect())).collect()
+            (0..ns)
+                .map(|k| (self.slot_names[k].clone(), (0..w * h).map(|i| slots[i * ns + k].to_array()).collect()))
+                .collect()
         } else {
             Vec::new()
         };
-        Ok(RenderOutput { width: w, height: h, image, per_light, rays: rays.into_inner(), seconds: start.elapsed().as_secs_f64() })
+        Ok(RenderOutput {
+            width: w,
+            height: h,
+            image,
+            per_light,
+            rays: rays.into_inner(),
+            seconds: start.elapsed().as_secs_f64(),
+        })
     }
 
     /// Cast `passes` jittered camera rays per pixel (closest hit only); returns (rays, seconds).
-    pub fn primary_ray_benchmark(&self, camera: &Camera, passes: u32, threads: Option<usize>) -> Result<(u64, f64), RenderError> {
+    pub fn primary_ray_benchmark(
+        &self,
+        camera: &Camera,
+        passes: u32,
+        threads: Option<usize>,
+    ) -> Result<(u64, f64), RenderError> {
         let (w, h) = (camera.width, camera.height);
         let start = Instant::now();
         let hits = run_in_pool(threads, || {

@@ -52,7 +52,17 @@ pub struct LightGridOptions {
 
 impl Default for LightGridOptions {
     fn default() -> Self {
-        LightGridOptions { stride: 8, samples_per_bin: 4, seed: 0, max_depth: 6, rr_depth: 5, threads: None, progress: false, per_light: false, diffuse_only: false }
+        LightGridOptions {
+            stride: 8,
+            samples_per_bin: 4,
+            seed: 0,
+            max_depth: 6,
+            rr_depth: 5,
+            threads: None,
+            progress: false,
+            per_light: false,
+            diffuse_only: false,
+        }
     }
 }
 
@@ -111,7 +121,12 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
     let ns = r.n_slots();
     let n_parts = r.part_names.len() as u32;
     let bar = progress_bar(opts.progress, (gw * gh) as u64, "light grid");
-    let cfg = PathConfig { max_depth: opts.max_depth.saturating_sub(1), rr_depth: opts.rr_depth, per_light: opts.per_light, diffuse_only: opts.diffuse_only };
+    let cfg = PathConfig {
+        max_depth: opts.max_depth.saturating_sub(1),
+        rr_depth: opts.rr_depth,
+        per_light: opts.per_light,
+        diffuse_only: opts.diffuse_only,
+    };
     let cells: Vec<Cell> = run_in_pool(opts.threads, || {
         (0..gw * gh)
             .into_par_iter()
@@ -119,7 +134,14 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
                 let x = ((c % gw) * opts.stride + opts.stride / 2).min(w - 1);
                 let y = ((c / gw) * opts.stride + opts.stride / 2).min(h - 1);
                 let d = camera.direction(x as f32 + 0.5, y as f32 + 0.5);
-                let mut cell = Cell { valid: false, part: 0, p: [0.0; 3], n: [0.0; 3], t: [0.0; 3], slots: vec![Vec3::ZERO; ns * BINS] };
+                let mut cell = Cell {
+                    valid: false,
+                    part: 0,
+                    p: [0.0; 3],
+                    n: [0.0; 3],
+                    t: [0.0; 3],
+                    slots: vec![Vec3::ZERO; ns * BINS],
+                };
                 let hit = match r.geometry.trace(camera.position, d, f32::INFINITY) {
                     Traced::Surface(hit) => hit,
                     Traced::Emitter { light, .. } => {
@@ -143,7 +165,11 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
                         let b = i * GRID_PHI_BINS + j;
                         acc.iter_mut().for_each(|a| *a = Vec3::ZERO);
                         for s in 0..opts.samples_per_bin {
-                            let mut st = PathState { rng: Rng::new(opts.seed, c as u64, (b as u64) << 32 | s as u64), rays: 0, out: &mut acc };
+                            let mut st = PathState {
+                                rng: Rng::new(opts.seed, c as u64, (b as u64) << 32 | s as u64),
+                                rays: 0,
+                                out: &mut acc,
+                            };
                             let u = st.rng.next_2d();
                             let dir = frame.to_world(bin_direction(i, j, u));
                             if dir.dot(sf.ng) > 0.0 {
@@ -167,8 +193,11 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
     })?;
     bar.finish_and_clear();
     let mut radiance = vec![0.0f32; gw * gh * BINS * 3];
-    let mut per_slot: Vec<(String, Vec<f32>)> =
-        if opts.per_light { r.slot_names.iter().map(|n| (n.clone(), vec![0.0f32; gw * gh * BINS * 3])).collect() } else { Vec::new() };
+    let mut per_slot: Vec<(String, Vec<f32>)> = if opts.per_light {
+        r.slot_names.iter().map(|n| (n.clone(), vec![0.0f32; gw * gh * BINS * 3])).collect()
+    } else {
+        Vec::new()
+    };
     for (c, cell) in cells.iter().enumerate() {
         for b in 0..BINS {
             let mut sum = Vec3::ZERO;
@@ -215,7 +244,8 @@ impl LightGrid {
             while bin.len() % 16 != 0 {
                 bin.push(0);
             }
-            arrays.push(json!({"name": name, "dtype": dtype, "shape": shape, "offset": bin.len(), "bytes": bytes.len()}));
+            arrays
+                .push(json!({"name": name, "dtype": dtype, "shape": shape, "offset": bin.len(), "bytes": bytes.len()}));
             bin.extend_from_slice(&bytes);
         };
         let f32s = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();

@@ -83,7 +83,11 @@ impl Texture {
     /// From linear texels, row-major, row 0 = top of the image.
     pub fn new(width: usize, height: usize, data: Vec<[f32; 3]>) -> Result<Self, RenderError> {
         if width == 0 || height == 0 || data.len() != width * height {
-            return Err(RenderError::Invalid(format!("texture of {width}x{height} needs {} texels, got {}", width * height, data.len())));
+            return Err(RenderError::Invalid(format!(
+                "texture of {width}x{height} needs {} texels, got {}",
+                width * height,
+                data.len()
+            )));
         }
         Ok(Texture { width, height, texels: Texels::Linear(data) })
     }
@@ -91,7 +95,11 @@ impl Texture {
     /// From 8-bit sRGB texels (4th byte unused), row-major, row 0 = top of the image.
     pub fn from_srgb8(width: usize, height: usize, data: Vec<[u8; 4]>) -> Result<Self, RenderError> {
         if width == 0 || height == 0 || data.len() != width * height {
-            return Err(RenderError::Invalid(format!("texture of {width}x{height} needs {} texels, got {}", width * height, data.len())));
+            return Err(RenderError::Invalid(format!(
+                "texture of {width}x{height} needs {} texels, got {}",
+                width * height,
+                data.len()
+            )));
         }
         Ok(Texture { width, height, texels: Texels::Srgb8(data) })
     }
@@ -102,7 +110,10 @@ impl Texture {
         let is_exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
         if srgb && !is_exr && path.is_file() {
             let img = image::open(path).map_err(|e| RenderError::image(path, e))?;
-            if matches!(img.color(), image::ColorType::Rgb8 | image::ColorType::Rgba8 | image::ColorType::L8 | image::ColorType::La8) {
+            if matches!(
+                img.color(),
+                image::ColorType::Rgb8 | image::ColorType::Rgba8 | image::ColorType::L8 | image::ColorType::La8
+            ) {
                 let rgb = img.to_rgb8();
                 let (w, h) = (rgb.width() as usize, rgb.height() as usize);
                 let data = rgb.pixels().map(|p| [p[0], p[1], p[2], 0]).collect();
@@ -142,7 +153,13 @@ impl Texture {
         let (x0f, y0f) = ((x + 1.0) as i32 - 1, (y + 1.0) as i32 - 1); // floor for x >= -1
         let (fx, fy) = (x - x0f as f32, y - y0f as f32);
         let wrap = |i: i32, n: usize| -> usize {
-            if i < 0 { n - 1 } else if i as usize >= n { i as usize - n } else { i as usize }
+            if i < 0 {
+                n - 1
+            } else if i as usize >= n {
+                i as usize - n
+            } else {
+                i as usize
+            }
         };
         let (x0, x1) = (wrap(x0f, self.width), wrap(x0f + 1, self.width));
         let (y0, y1) = (wrap(y0f, self.height), wrap(y0f + 1, self.height));

@@ -84,9 +84,13 @@ pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, RenderE
         match std::fs::File::open(&p) {
             Ok(f) => match tobj::load_mtl_buf(&mut BufReader::new(f)) {
                 Ok((mats, _)) => materials.extend(mats),
-                Err(e) => warnings.push(format!("{}: cannot parse MTL ({e}); parts keep their names, default materials", p.display())),
+                Err(e) => warnings.push(format!(
+                    "{}: cannot parse MTL ({e}); parts keep their names, default materials",
+                    p.display()
+                )),
             },
-            Err(_) => warnings.push(format!("{}: MTL file not found; parts keep their usemtl names, default materials", p.display())),
+            Err(_) => warnings
+                .push(format!("{}: MTL file not found; parts keep their usemtl names, default materials", p.display())),
         }
     }
     for name in &usemtl {
@@ -94,7 +98,8 @@ pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, RenderE
             materials.push(tobj::Material { name: name.clone(), ..Default::default() });
         }
     }
-    let source = if mtllibs.is_empty() && !usemtl.is_empty() { format!("mtllib __psc_synthetic.mtl\n{text}") } else { text };
+    let source =
+        if mtllibs.is_empty() && !usemtl.is_empty() { format!("mtllib __psc_synthetic.mtl\n{text}") } else { text };
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
     let mats_for_loader = materials.clone();
     let (models, _) = tobj::load_obj_buf(&mut source.as_bytes(), &options, |_| {
@@ -107,7 +112,11 @@ pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, RenderE
     let mut degenerate = 0usize;
     for model in &models {
         let m = &model.mesh;
-        let part_name = m.material_id.and_then(|i| materials.get(i)).map(|mat| mat.name.clone()).unwrap_or_else(|| "default".to_string());
+        let part_name = m
+            .material_id
+            .and_then(|i| materials.get(i))
+            .map(|mat| mat.name.clone())
+            .unwrap_or_else(|| "default".to_string());
         let part = match mesh.part_index(&part_name) {
             Some(i) => i,
             None => {
@@ -123,7 +132,8 @@ pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, RenderE
             }
         } as u32;
         let nv = m.positions.len() / 3;
-        let pos: Vec<Vec3> = (0..nv).map(|i| Vec3::new(m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2])).collect();
+        let pos: Vec<Vec3> =
+            (0..nv).map(|i| Vec3::new(m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2])).collect();
         let has_uv = m.texcoords.len() == 2 * nv && nv > 0;
         let has_n = m.normals.len() == 3 * nv && nv > 0;
         any_normals |= has_n;
@@ -163,7 +173,11 @@ pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, RenderE
                     [p[k].x, p[k].y]
                 };
                 mesh.uvs.push(uv);
-                let n = if has_n { Vec3::new(m.normals[3 * i], m.normals[3 * i + 1], m.normals[3 * i + 2]) } else { Vec3::ZERO };
+                let n = if has_n {
+                    Vec3::new(m.normals[3 * i], m.normals[3 * i + 1], m.normals[3 * i + 2])
+                } else {
+                    Vec3::ZERO
+                };
                 mesh.normals.push(n);
             }
             mesh.triangles.push([base, base + 1, base + 2]);
@@ -185,7 +199,8 @@ pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, RenderE
         }
     }
     if degenerate > 0 {
-        warnings.push(format!("{}: skipped {degenerate} degenerate (zero-area or non-finite) triangles", path.display()));
+        warnings
+            .push(format!("{}: skipped {degenerate} degenerate (zero-area or non-finite) triangles", path.display()));
     }
     if mesh.triangles.is_empty() {
         return Err(RenderError::Obj { path: path.to_path_buf(), message: "no triangles".into() });

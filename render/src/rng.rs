@@ -19,7 +19,8 @@ pub fn mix64(mut z: u64) -> u64 {
 impl Rng {
     /// A stream determined by three keys (typically seed, pixel index, sample index).
     pub fn new(seed: u64, a: u64, b: u64) -> Self {
-        let s = mix64(seed ^ mix64(a.wrapping_add(0x9e37_79b9_7f4a_7c15) ^ mix64(b.wrapping_mul(0xd1b5_4a32_d192_ed03))));
+        let s =
+            mix64(seed ^ mix64(a.wrapping_add(0x9e37_79b9_7f4a_7c15) ^ mix64(b.wrapping_mul(0xd1b5_4a32_d192_ed03))));
         let inc = (mix64(s ^ 0x2545_f491_4f6c_dd1d) << 1) | 1;
         let mut r = Rng { state: 0, inc };
         r.next_u32();

@@ -127,12 +127,16 @@ impl Scene {
         let mut warnings = Vec::new();
         match m.format.as_deref() {
             Some(FORMAT) => {}
-            Some(other) => warnings.push(format!("{}: format '{other}' is not '{FORMAT}'; reading it as {FORMAT}", manifest_path.display())),
+            Some(other) => warnings.push(format!(
+                "{}: format '{other}' is not '{FORMAT}'; reading it as {FORMAT}",
+                manifest_path.display()
+            )),
             None => warnings.push(format!("{}: no \"format\"; assuming {FORMAT}", manifest_path.display())),
         }
         if let Some(u) = m.units.as_deref() {
             if u != "meters" && u != "metres" {
-                warnings.push(format!("{}: units '{u}': generated uvs and lights assume metres", manifest_path.display()));
+                warnings
+                    .push(format!("{}: units '{u}': generated uvs and lights assume metres", manifest_path.display()));
             }
         }
         let up = Vec3::from(m.up.unwrap_or([0.0, 1.0, 0.0]));
@@ -150,7 +154,11 @@ impl Scene {
         let mut views: Vec<View> = Vec::new();
         for v in &m.views {
             if views.iter().any(|o| o.name == v.name) {
-                return Err(RenderError::Invalid(format!("{}: two views are named '{}'", manifest_path.display(), v.name)));
+                return Err(RenderError::Invalid(format!(
+                    "{}: two views are named '{}'",
+                    manifest_path.display(),
+                    v.name
+                )));
             }
             views.push(load_view(dir, v, &mesh, &mut warnings)?);
         }
@@ -161,7 +169,11 @@ impl Scene {
             Some(specs) => {
                 for l in specs {
                     if lights.iter().any(|o: &LightSource| o.name == l.name) {
-                        return Err(RenderError::Invalid(format!("{}: two lights are named '{}'", manifest_path.display(), l.name)));
+                        return Err(RenderError::Invalid(format!(
+                            "{}: two lights are named '{}'",
+                            manifest_path.display(),
+                            l.name
+                        )));
                     }
                     let p = require_file(dir, &l.mesh, &format!("mesh of light '{}'", l.name))?;
                     let triangles = mesh::load_emitter(&p, &mut warnings)?;
@@ -234,10 +246,14 @@ fn load_view(dir: &Path, v: &ViewSpec, mesh: &Mesh, warnings: &mut Vec<String>) 
             RenderError::Invalid(format!("view '{}': part label key '{key}' is not an integer in 1..=65535", v.name))
         })?;
         if value == 0 {
-            return Err(RenderError::Invalid(format!("view '{}': label 0 means unlabelled and cannot name a part", v.name)));
+            return Err(RenderError::Invalid(format!(
+                "view '{}': label 0 means unlabelled and cannot name a part",
+                v.name
+            )));
         }
         if mesh.part_index(name).is_none() {
-            warnings.push(format!("view '{}': label {value} names part '{name}', which the model does not have", v.name));
+            warnings
+                .push(format!("view '{}': label {value} names part '{name}', which the model does not have", v.name));
         }
         part_labels.insert(value, name.clone());
     }
@@ -246,13 +262,20 @@ fn load_view(dir: &Path, v: &ViewSpec, mesh: &Mesh, warnings: &mut Vec<String>) 
             let p = require_file(dir, rel, &format!("part-label image of view '{}'", v.name))?;
             let (w, h, data) = image_io::read_labels(&p)?;
             if (w, h) != (width, height) {
-                return Err(RenderError::image(&p, format!("label image is {w}x{h} but the photo is {width}x{height}")));
+                return Err(RenderError::image(
+                    &p,
+                    format!("label image is {w}x{h} but the photo is {width}x{height}"),
+                ));
             }
-            let mut unnamed: Vec<u16> = data.iter().copied().filter(|&l| l != 0 && !part_labels.contains_key(&l)).collect();
+            let mut unnamed: Vec<u16> =
+                data.iter().copied().filter(|&l| l != 0 && !part_labels.contains_key(&l)).collect();
             unnamed.sort_unstable();
             unnamed.dedup();
             if !unnamed.is_empty() {
-                warnings.push(format!("view '{}': label values {unnamed:?} have no entry in part_labels; treated as unlabelled", v.name));
+                warnings.push(format!(
+                    "view '{}': label values {unnamed:?} have no entry in part_labels; treated as unlabelled",
+                    v.name
+                ));
             }
             Some(Labels { width: w, height: h, data })
         }
@@ -266,7 +289,13 @@ fn load_view(dir: &Path, v: &ViewSpec, mesh: &Mesh, warnings: &mut Vec<String>) 
 fn ceiling_lights(mesh: &Mesh, up: Vec3) -> Vec<LightSource> {
     let (lo, hi) = mesh.bounds();
     let a = up.abs();
-    let (ax, b1, b2) = if a.y >= a.x && a.y >= a.z { (1, 0, 2) } else if a.x >= a.z { (0, 1, 2) } else { (2, 0, 1) };
+    let (ax, b1, b2) = if a.y >= a.x && a.y >= a.z {
+        (1, 0, 2)
+    } else if a.x >= a.z {
+        (0, 1, 2)
+    } else {
+        (2, 0, 1)
+    };
     let sign = if up[ax] >= 0.0 { 1.0 } else { -1.0 };
     let height = if sign > 0.0 { hi[ax] - 0.005 } else { lo[ax] + 0.005 };
     let n1 = (((hi[b1] - lo[b1]) / 3.0).round() as usize).max(1);
@@ -339,7 +368,11 @@ impl ScalarOrRgb {
 
 impl LightRadiances {
     pub fn unit(scene: &Scene) -> Self {
-        LightRadiances { lights: vec![[1.0; 3]; scene.lights.len()], environment: [1.0; 3], source: "unit radiance".into() }
+        LightRadiances {
+            lights: vec![[1.0; 3]; scene.lights.len()],
+            environment: [1.0; 3],
+            source: "unit radiance".into(),
+        }
     }
 
     /// Read a lights file: `{"lights": [{"name": "ceiling0", "radiance_rgb": [r, g, b]}, ...],
@@ -355,7 +388,13 @@ impl LightRadiances {
             match f.lights.iter().find(|e| e.name == l.name) {
                 Some(e) => match e.radiance_rgb.or(e.radiance) {
                     Some(r) => out.lights[i] = r.rgb(),
-                    None => return Err(RenderError::Invalid(format!("{}: light '{}' has no radiance_rgb", path.display(), l.name))),
+                    None => {
+                        return Err(RenderError::Invalid(format!(
+                            "{}: light '{}' has no radiance_rgb",
+                            path.display(),
+                            l.name
+                        )))
+                    }
                 },
                 None => warnings.push(format!("{}: no radiance for light '{}'; using 1", path.display(), l.name)),
             }

@@ -67,7 +67,11 @@ pub fn truth_materials(scene: &Scene, warnings: &mut Vec<String>) -> Result<Vec<
                     .with_uv_transform(p.albedo.uv_transform.unwrap_or(crate::material::IDENTITY_UV))
             }
             (None, Some(rgb)) => MaterialBinding::constant(rgb, p.roughness),
-            (None, None) => return Err(RenderError::Invalid(format!("truth.json: part '{name}' has neither texture nor rgb_linear"))),
+            (None, None) => {
+                return Err(RenderError::Invalid(format!(
+                    "truth.json: part '{name}' has neither texture nor rgb_linear"
+                )))
+            }
         };
         out.push(binding);
     }

@@ -164,7 +164,10 @@ fn sampling_matches_pdf_histogram() {
                 mass *= (1.0 / nc as f64) * (2.0 * std::f64::consts::PI / np as f64) / (sub * sub) as f64;
                 let got = hist[c * np + p] / n as f64;
                 let sigma = (mass / n as f64).sqrt();
-                assert!((got - mass).abs() < 5.0 * sigma + 0.003 * mass + 2e-4, "cell ({c},{p}) r={r}: sampled {got}, pdf {mass}");
+                assert!(
+                    (got - mass).abs() < 5.0 * sigma + 0.003 * mass + 2e-4,
+                    "cell ({c},{p}) r={r}: sampled {got}, pdf {mass}"
+                );
             }
         }
     }

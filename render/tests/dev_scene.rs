@@ -55,8 +55,11 @@ fn downsample(img: &[[f32; 3]], w: usize, h: usize) -> Vec<f32> {
 fn truth_error(dir: &std::path::Path, truth_materials: bool) -> (f64, f64, f64) {
     let scene = Scene::load_with_mesh(dir, truth::truth_mesh(dir).as_deref()).unwrap();
     let mut warnings = Vec::new();
-    let materials =
-        if truth_materials { truth::truth_materials(&scene, &mut warnings).unwrap() } else { scene.mtl_materials(&mut warnings) };
+    let materials = if truth_materials {
+        truth::truth_materials(&scene, &mut warnings).unwrap()
+    } else {
+        scene.mtl_materials(&mut warnings)
+    };
     let radiances = LightRadiances::resolve(&scene, None, &mut warnings).unwrap();
     assert!(radiances.source.ends_with("truth.json"));
     let r = Renderer::new(&scene, materials, &radiances).unwrap();
@@ -92,7 +95,9 @@ fn dev1_render_with_truth_textures_matches_the_truth_image() {
         return;
     };
     let (err, block_err, ratio) = truth_error(&dir, true);
-    eprintln!("dev_1 vs truth/view0.exr: mean relative error {err:.4}, on 8x8 blocks {block_err:.4}, mean ratio {ratio:.4}");
+    eprintln!(
+        "dev_1 vs truth/view0.exr: mean relative error {err:.4}, on 8x8 blocks {block_err:.4}, mean ratio {ratio:.4}"
+    );
     // Measured (seed 1): 0.143 per pixel, 0.036 on blocks, ratio 1.005. Per pixel this is
     // Monte Carlo noise (16 spp: relative std ≈ 0.5/√16 ≈ 0.13 on these interiors; at 64 spp
     // full resolution the same comparison gives 0.082 per pixel and 0.010 on blocks, i.e. it

@@ -59,7 +59,8 @@ fn bright_sun_patch_is_unbiased() {
     for y in 0..h / 2 {
         for x in 0..w {
             // texel solid angle × cos θ, integrated exactly over the texel's rows
-            let (t0, t1) = (std::f64::consts::PI * y as f64 / h as f64, std::f64::consts::PI * (y + 1) as f64 / h as f64);
+            let (t0, t1) =
+                (std::f64::consts::PI * y as f64 / h as f64, std::f64::consts::PI * (y + 1) as f64 / h as f64);
             let cos_int = 0.5 * (t1.sin().powi(2) - t0.sin().powi(2)); // ∫ cosθ sinθ dθ
             e += sky(x, y)[0] as f64 * cos_int * 2.0 * std::f64::consts::PI / w as f64;
         }

@@ -5,7 +5,10 @@ mod common;
 
 use common::*;
 use psc_render::lightgrid::bin_solid_angle;
-use psc_render::{compute_light_grid, LightGridOptions, LightRadiances, RenderOptions, Renderer, Scene, GRID_PHI_BINS, GRID_THETA_BINS};
+use psc_render::{
+    compute_light_grid, LightGridOptions, LightRadiances, RenderOptions, Renderer, Scene, GRID_PHI_BINS,
+    GRID_THETA_BINS,
+};
 use std::f32::consts::PI;
 
 #[test]
@@ -19,9 +22,19 @@ fn lambertian_shading_of_the_grid_matches_the_render() {
     radiances.lights[0] = [6.0, 6.0, 6.0];
     let r = Renderer::new(&scene, materials.clone(), &radiances).unwrap();
     let cam = &scene.views[0].camera;
-    let grid = compute_light_grid(&r, cam, &LightGridOptions { stride: 8, samples_per_bin: 6, seed: 3, diffuse_only: true, ..Default::default() }).unwrap();
+    let grid = compute_light_grid(
+        &r,
+        cam,
+        &LightGridOptions { stride: 8, samples_per_bin: 6, seed: 3, diffuse_only: true, ..Default::default() },
+    )
+    .unwrap();
     assert_eq!((grid.grid_width, grid.grid_height), (5, 4));
-    let img = r.render(cam, &RenderOptions { width: W, height: H, spp: 256, seed: 9, diffuse_only: true, ..Default::default() }).unwrap();
+    let img = r
+        .render(
+            cam,
+            &RenderOptions { width: W, height: H, spp: 256, seed: 9, diffuse_only: true, ..Default::default() },
+        )
+        .unwrap();
     let (mut shaded_sum, mut render_sum, mut n) = (0.0f64, 0.0f64, 0);
     for gy in 0..grid.grid_height {
         for gx in 0..grid.grid_width {
@@ -54,7 +67,8 @@ fn lambertian_shading_of_the_grid_matches_the_render() {
     // The saved format round-trips its header.
     let out = temp_dir("lightgrid-out");
     grid.save(&out).unwrap();
-    let header: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("lightgrid.json")).unwrap()).unwrap();
+    let header: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("lightgrid.json")).unwrap()).unwrap();
     assert_eq!(header["theta_bins"], 8);
     let bin_len = std::fs::metadata(out.join("lightgrid.bin")).unwrap().len() as usize;
     let last = header["arrays"].as_array().unwrap().last().unwrap().clone();

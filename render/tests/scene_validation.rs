@@ -171,7 +171,8 @@ fn missing_mtl_keeps_part_names_with_a_warning() {
 fn no_lights_key_places_ceiling_lights() {
     let dir = temp_dir("autolights");
     write_scene(&dir);
-    let text = manifest(GOOD_CAMERA, GOOD_LABELS).replace(r#""lights": [ { "name": "lamp", "mesh": "lights/lamp.obj" } ]"#, r#""units2": 1"#);
+    let text = manifest(GOOD_CAMERA, GOOD_LABELS)
+        .replace(r#""lights": [ { "name": "lamp", "mesh": "lights/lamp.obj" } ]"#, r#""units2": 1"#);
     // unknown keys are rejected: that is a schema error with a location
     std::fs::write(dir.join("scene.json"), &text).unwrap();
     assert!(matches!(load_err(&dir), RenderError::Json { .. }));

@@ -55,15 +55,21 @@ enum UvScale {
 
 /// Reads `path` and replaces the bindings of the parts it names. `part_names[i]` names
 /// `bindings[i]`.
-pub fn apply_assignment(path: &Path, library: &Library, part_names: &[String], bindings: &mut [MaterialBinding]) -> Result<(), String> {
+pub fn apply_assignment(
+    path: &Path,
+    library: &Library,
+    part_names: &[String],
+    bindings: &mut [MaterialBinding],
+) -> Result<(), String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    let file: AssignmentFile = serde_json::from_str(&text)
-        .map_err(|e| format!("{}:{}:{}: {e}", path.display(), e.line(), e.column()))?;
+    let file: AssignmentFile =
+        serde_json::from_str(&text).map_err(|e| format!("{}:{}:{}: {e}", path.display(), e.line(), e.column()))?;
     for (part, a) in &file.parts {
         let at = |msg: String| format!("{}: part `{part}`: {msg}", path.display());
-        let index = part_names.iter().position(|p| p == part).ok_or_else(|| {
-            at(format!("the scene has no such part (parts: {})", part_names.join(", ")))
-        })?;
+        let index = part_names
+            .iter()
+            .position(|p| p == part)
+            .ok_or_else(|| at(format!("the scene has no such part (parts: {})", part_names.join(", "))))?;
         let material = library.get(&a.graph).ok_or_else(|| {
             let names: Vec<&str> = library.names().collect();
             at(format!("no graph `{}` in the library (graphs: {})", a.graph, names.join(", ")))
@@ -76,7 +82,8 @@ pub fn apply_assignment(path: &Path, library: &Library, part_names: &[String], b
         if albedo_scale.iter().chain([&roughness_scale]).any(|x| !x.is_finite() || *x < 0.0) {
             return Err(at("albedo_scale and roughness_scale must be finite and non-negative".into()));
         }
-        bindings[index] = MaterialBinding { material: Arc::new(procedural), uv_transform, albedo_scale, roughness_scale };
+        bindings[index] =
+            MaterialBinding { material: Arc::new(procedural), uv_transform, albedo_scale, roughness_scale };
     }
     Ok(())
 }

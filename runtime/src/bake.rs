@@ -104,14 +104,16 @@ fn io_err(e: impl std::fmt::Display) -> io::Error {
 /// Writes an 8-bit RGB PNG.
 pub fn write_png_rgb(path: &Path, size: (u32, u32), rgb: &[u8]) -> io::Result<()> {
     write_atomic(path, |tmp| {
-        image::save_buffer_with_format(tmp, rgb, size.0, size.1, image::ColorType::Rgb8, image::ImageFormat::Png).map_err(io_err)
+        image::save_buffer_with_format(tmp, rgb, size.0, size.1, image::ColorType::Rgb8, image::ImageFormat::Png)
+            .map_err(io_err)
     })
 }
 
 /// Writes an 8-bit greyscale PNG.
 pub fn write_png_gray(path: &Path, size: (u32, u32), gray: &[u8]) -> io::Result<()> {
     write_atomic(path, |tmp| {
-        image::save_buffer_with_format(tmp, gray, size.0, size.1, image::ColorType::L8, image::ImageFormat::Png).map_err(io_err)
+        image::save_buffer_with_format(tmp, gray, size.0, size.1, image::ColorType::L8, image::ImageFormat::Png)
+            .map_err(io_err)
     })
 }
 
@@ -253,7 +255,10 @@ pub fn params_from_json(info: &GraphInfo, json: &serde_json::Value) -> Result<Ve
                     serde_json::Value::Object(o) if o.contains_key("srgb") => (&o["srgb"], true),
                     v => (v, false),
                 };
-                let arr = arr.as_array().filter(|a| a.len() == 3).ok_or_else(|| format!("`{name}` must be [r, g, b] or {{\"srgb\": [r, g, b]}}"))?;
+                let arr = arr
+                    .as_array()
+                    .filter(|a| a.len() == 3)
+                    .ok_or_else(|| format!("`{name}` must be [r, g, b] or {{\"srgb\": [r, g, b]}}"))?;
                 for (c, x) in arr.iter().enumerate() {
                     let x = x.as_f64().ok_or_else(|| format!("`{name}` must hold numbers"))? as f32;
                     if !(0.0..=1.0).contains(&x) {

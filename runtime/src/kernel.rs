@@ -143,7 +143,10 @@ impl Kernel {
         let n = u.len();
         let nf = self.forward.outputs.len();
         if d_out.len() != nf {
-            return Err(KernelError::Shape(format!("{} gradient columns given, the graph has {nf} outputs", d_out.len())));
+            return Err(KernelError::Shape(format!(
+                "{} gradient columns given, the graph has {nf} outputs",
+                d_out.len()
+            )));
         }
         if let Some((o, c)) = d_out.iter().enumerate().find(|(_, c)| c.len() != n) {
             return Err(KernelError::Shape(format!("gradient column {o} has {} points, u has {n}", c.len())));
@@ -233,14 +236,23 @@ fn adjoint_layout(forward: &Program, adjoint: &Program) -> Result<Vec<u32>, Kern
         }
     }
     if adjoint.outputs[nf].name != "d_u" || adjoint.outputs[nf + 1].name != "d_v" {
-        return bad(format!("outputs `{}`, `{}` where `d_u`, `d_v` were expected", adjoint.outputs[nf].name, adjoint.outputs[nf + 1].name));
+        return bad(format!(
+            "outputs `{}`, `{}` where `d_u`, `d_v` were expected",
+            adjoint.outputs[nf].name,
+            adjoint.outputs[nf + 1].name
+        ));
     }
     let mut wrt = Vec::new();
     for out in &adjoint.outputs[nf + 2..] {
         let slot = out.name.strip_prefix("d_param").and_then(|s| s.parse::<u32>().ok());
         match slot {
             Some(s) if (s as usize) < forward.num_params && !wrt.contains(&s) => wrt.push(s),
-            _ => return bad(format!("output `{}` is not `d_param<slot>` for a distinct slot < {}", out.name, forward.num_params)),
+            _ => {
+                return bad(format!(
+                    "output `{}` is not `d_param<slot>` for a distinct slot < {}",
+                    out.name, forward.num_params
+                ))
+            }
         }
     }
     Ok(wrt)

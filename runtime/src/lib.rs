@@ -5,9 +5,9 @@
 //! graphs, image output of baked maps. Must never: parse or type-check source (that is the
 //! compiler's), or generate code (that is the JIT's).
 
+pub mod assign;
+pub mod bake;
 pub mod kernel;
 pub mod library;
 pub mod material;
-pub mod assign;
-pub mod bake;
 pub mod sheet;

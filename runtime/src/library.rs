@@ -45,7 +45,10 @@ impl Material {
 pub enum LibraryError {
     /// Source problems, rendered (file:line:col, caret, hint), one diagnostic after another.
     Diagnostics(String),
-    Kernel { graph: String, error: KernelError },
+    Kernel {
+        graph: String,
+        error: KernelError,
+    },
     Io(String),
 }
 
@@ -53,7 +56,9 @@ impl fmt::Display for LibraryError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             LibraryError::Diagnostics(text) => write!(f, "the graphs have errors:\n{text}"),
-            LibraryError::Kernel { graph, error } => write!(f, "cannot compile graph `{graph}` to native code: {error}"),
+            LibraryError::Kernel { graph, error } => {
+                write!(f, "cannot compile graph `{graph}` to native code: {error}")
+            }
             LibraryError::Io(m) => f.write_str(m),
         }
     }

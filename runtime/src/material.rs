@@ -69,4 +69,5 @@ impl SurfaceMaterial for ProceduralMaterial {
 
 /// Parameters are validated at construction, so a kernel shape error is a bug: shade it a loud
 /// magenta rather than abort a long render.
-const SHAPE_ERROR_SAMPLE: SurfaceSample = SurfaceSample { albedo: [1.0, 0.0, 1.0], roughness: 1.0, normal: [0.0, 0.0, 1.0] };
+const SHAPE_ERROR_SAMPLE: SurfaceSample =
+    SurfaceSample { albedo: [1.0, 0.0, 1.0], roughness: 1.0, normal: [0.0, 0.0, 1.0] };

@@ -96,7 +96,10 @@ fn adjoint_matches_central_differences_of_the_jit_forward() {
     // The implied loss: L(p) = sum_k sum_o seed[o][k] * f_o(p; u_k, v_k), in f64.
     let loss = |p: &[f32], u: &[f32], v: &[f32]| -> f64 {
         let out = k.eval(p, u, v).unwrap();
-        out.iter().zip(&s).map(|(col, sc)| col.iter().zip(sc).map(|(&f, &w)| f64::from(f) * f64::from(w)).sum::<f64>()).sum()
+        out.iter()
+            .zip(&s)
+            .map(|(col, sc)| col.iter().zip(sc).map(|(&f, &w)| f64::from(f) * f64::from(w)).sum::<f64>())
+            .sum()
     };
     for slot in 0..4 {
         let h = 1e-2f32;

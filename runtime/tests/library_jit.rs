@@ -26,7 +26,8 @@ fn jit_matches_the_interpreter_on_every_library_graph() {
     let n = 512;
     for m in &lib.materials {
         for trial in 0..3 {
-            let params = if trial == 0 { m.graph.info.default_params() } else { random_params(&m.graph.info, &mut rng) };
+            let params =
+                if trial == 0 { m.graph.info.default_params() } else { random_params(&m.graph.info, &mut rng) };
             // Points inside and outside the unit tile.
             let u: Vec<f32> = (0..n).map(|_| rng.next_f32() * 3.0 - 1.0).collect();
             let v: Vec<f32> = (0..n).map(|_| rng.next_f32() * 3.0 - 1.0).collect();

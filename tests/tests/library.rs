@@ -21,7 +21,9 @@ fn random_params(m: &Material, rng: &mut Rng) -> Vec<f32> {
     for q in &info.params {
         match q.kind {
             ParamKind::Continuous { min, max } => p[q.slot] = min + (max - min) * rng.next_f32(),
-            ParamKind::Discrete { min, max } => p[q.slot] = (min + (rng.next_u64() % (max - min + 1) as u64) as i64) as f32,
+            ParamKind::Discrete { min, max } => {
+                p[q.slot] = (min + (rng.next_u64() % (max - min + 1) as u64) as i64) as f32
+            }
             ParamKind::Color => (0..3).for_each(|c| p[q.slot + c] = rng.next_f32()),
         }
     }
@@ -117,7 +119,10 @@ fn every_graph_tiles() {
                     bad += differs as usize;
                 }
                 if bad * 100 > n {
-                    failures.push(format!("{} trial {trial} shift ({du}, {dv}): {bad}/{n} points differ", m.graph.info.name));
+                    failures.push(format!(
+                        "{} trial {trial} shift ({du}, {dv}): {bad}/{n} points differ",
+                        m.graph.info.name
+                    ));
                 }
             }
         }
@@ -139,7 +144,8 @@ fn every_continuous_parameter_has_a_gradient() {
         for trial in 0..6 {
             let params = if trial == 0 { info.default_params() } else { random_params(m, &mut rng) };
             let (u, v) = random_points(2048, &mut rng);
-            let seeds: Vec<Vec<f32>> = (0..9).map(|_| (0..u.len()).map(|_| rng.next_f32() * 2.0 - 1.0).collect()).collect();
+            let seeds: Vec<Vec<f32>> =
+                (0..9).map(|_| (0..u.len()).map(|_| rng.next_f32() * 2.0 - 1.0).collect()).collect();
             let seed_refs: Vec<&[f32]> = seeds.iter().map(|s| &s[..]).collect();
             let g = m.gradient_kernel().unwrap().adjoint(&params, &u, &v, &seed_refs).unwrap();
             for &s in &slots {
@@ -182,7 +188,8 @@ fn random_variants_differ_visibly() {
                 let mut d = 0.0f64;
                 for k in 0..n {
                     for c in 0..3 {
-                        d += (images[a][c][k].max(0.0).powf(1.0 / 2.2) - images[b][c][k].max(0.0).powf(1.0 / 2.2)).abs() as f64;
+                        d += (images[a][c][k].max(0.0).powf(1.0 / 2.2) - images[b][c][k].max(0.0).powf(1.0 / 2.2)).abs()
+                            as f64;
                     }
                     for c in 4..7 {
                         d += (images[a][c][k] - images[b][c][k]).abs() as f64;

@@ -37,7 +37,8 @@ fn the_readme_typo_gives_the_error_it_shows() {
     let out = compile_text(&as_library_file(), text, &Options::default());
     let rendered = out.render_diagnostics();
     assert!(out.has_errors());
-    for line in ["error: unknown function `fmb`", "= hint: did you mean `fbm`?", "node n = fmb(uv, scale, octaves: 5)"] {
+    for line in ["error: unknown function `fmb`", "= hint: did you mean `fbm`?", "node n = fmb(uv, scale, octaves: 5)"]
+    {
         assert!(rendered.contains(line), "missing {line:?} in:\n{rendered}");
         assert!(readme.contains(line.trim_start_matches("= ")), "the README no longer shows {line:?}");
     }

@@ -16,8 +16,8 @@ pub const MAX_LOOP_TRIPS: i64 = 1024;
 impl Checker<'_> {
     pub(super) fn check_expr(&mut self, e: &Expr) -> Typed {
         if self.depth >= MAX_EXPR_DEPTH {
-            self.error(e.span, "expression is nested too deeply")
-                .hint = Some(format!("split it with `let` bindings (the limit is {MAX_EXPR_DEPTH} levels)"));
+            self.error(e.span, "expression is nested too deeply").hint =
+                Some(format!("split it with `let` bindings (the limit is {MAX_EXPR_DEPTH} levels)"));
             return Typed::error();
         }
         self.depth += 1;
@@ -52,8 +52,8 @@ impl Checker<'_> {
                 match self.binary_type(*op, &ta.ty, &tb.ty) {
                     Some(ty) => Typed::new(ty, konst),
                     None => {
-                        self.error(e.span, format!("cannot apply `{}` to {} and {}", op.symbol(), ta.ty, tb.ty))
-                            .hint = binary_hint(*op, &ta.ty, &tb.ty);
+                        self.error(e.span, format!("cannot apply `{}` to {} and {}", op.symbol(), ta.ty, tb.ty)).hint =
+                            binary_hint(*op, &ta.ty, &tb.ty);
                         Typed::error()
                     }
                 }
@@ -79,8 +79,8 @@ impl Checker<'_> {
             ExprKind::If(cond, then, otherwise) => {
                 let c = self.check_expr(cond);
                 if !c.ty.coerces_to(&Ty::Bool) {
-                    self.error(cond.span, format!("an `if` condition must be bool, found {}", c.ty))
-                        .hint = Some("compare it, e.g. `x > 0.5`".into());
+                    self.error(cond.span, format!("an `if` condition must be bool, found {}", c.ty)).hint =
+                        Some("compare it, e.g. `x > 0.5`".into());
                 }
                 let a = self.check_block(then);
                 let b = self.check_block(otherwise);
@@ -101,14 +101,18 @@ impl Checker<'_> {
     fn binary_type(&self, op: BinOp, a: &Ty, b: &Ty) -> Option<Ty> {
         if *a == Ty::Error || *b == Ty::Error {
             return Some(match op {
-                BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne | BinOp::And | BinOp::Or => Ty::Bool,
+                BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge | BinOp::Eq | BinOp::Ne | BinOp::And | BinOp::Or => {
+                    Ty::Bool
+                }
                 _ => Ty::Error,
             });
         }
         match op {
             BinOp::Add | BinOp::Sub | BinOp::Mul | BinOp::Rem => Ty::unify_numeric(a, b),
             BinOp::Div => Ty::unify_numeric(a, b).map(|t| t.to_float()),
-            BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge => (a.width() == Some(1) && b.width() == Some(1)).then_some(Ty::Bool),
+            BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge => {
+                (a.width() == Some(1) && b.width() == Some(1)).then_some(Ty::Bool)
+            }
             BinOp::Eq | BinOp::Ne => {
                 let scalars = a.width() == Some(1) && b.width() == Some(1);
                 let bools = *a == Ty::Bool && *b == Ty::Bool;
@@ -133,8 +137,8 @@ impl Checker<'_> {
                 return self.const_type(item, def);
             }
             Ok(Some(ItemRef::Fn(..))) => {
-                self.error(id.span, format!("`{}` is a function, not a value", id.name))
-                    .hint = Some(format!("call it: `{}(…)`", id.name));
+                self.error(id.span, format!("`{}` is a function, not a value", id.name)).hint =
+                    Some(format!("call it: `{}(…)`", id.name));
                 return Typed::error();
             }
             Err(candidates) => {
@@ -147,8 +151,8 @@ impl Checker<'_> {
             return Typed::new(Ty::Vec2, false);
         }
         if Builtin::from_name(&id.name).is_some() {
-            self.error(id.span, format!("`{}` is a built-in function, not a value", id.name))
-                .hint = Some(format!("call it: `{}(…)`", id.name));
+            self.error(id.span, format!("`{}` is a built-in function, not a value", id.name)).hint =
+                Some(format!("call it: `{}(…)`", id.name));
             return Typed::error();
         }
         let mut names: Vec<String> = self.locals.iter().map(|l| l.name.clone()).collect();
@@ -171,8 +175,8 @@ impl Checker<'_> {
                 ItemRef::Fn(m, _) | ItemRef::Const(m, _) => self.set.sources.name(self.set.module(*m).file).to_string(),
             })
             .collect();
-        self.error(id.span, format!("`{}` is defined by several imported modules", id.name))
-            .hint = Some(format!("found in {}; define your own or import only one", modules.join(" and ")));
+        self.error(id.span, format!("`{}` is defined by several imported modules", id.name)).hint =
+            Some(format!("found in {}; define your own or import only one", modules.join(" and ")));
     }
 
     fn field_type(&mut self, base: &Typed, field: &ast::Ident) -> Typed {
@@ -181,8 +185,12 @@ impl Checker<'_> {
             Ty::Record(fields) => match fields.iter().find(|(n, _)| *n == field.name) {
                 Some((_, ty)) => Typed::new(ty.clone(), base.konst),
                 None => {
-                    let hint = did_you_mean(&field.name, fields.iter().map(|(n, _)| n.as_str()))
-                        .or_else(|| Some(format!("its fields are: {}", fields.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", "))));
+                    let hint = did_you_mean(&field.name, fields.iter().map(|(n, _)| n.as_str())).or_else(|| {
+                        Some(format!(
+                            "its fields are: {}",
+                            fields.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
+                        ))
+                    });
                     self.error(field.span, format!("no field `{}` on {}", field.name, base.ty)).hint = hint;
                     Typed::error()
                 }
@@ -191,13 +199,14 @@ impl Checker<'_> {
                 Some(idx) => Typed::new(Ty::of_width(idx.len()), base.konst),
                 None => {
                     let letters = if *ty == Ty::Vec2 { "x, y" } else { "x, y, z or r, g, b" };
-                    self.error(field.span, format!("`.{}` is not a component of {ty}", field.name))
-                        .hint = Some(format!("swizzles use up to three of {letters}"));
+                    self.error(field.span, format!("`.{}` is not a component of {ty}", field.name)).hint =
+                        Some(format!("swizzles use up to three of {letters}"));
                     Typed::error()
                 }
             },
             ty => {
-                self.error(field.span, format!("{ty} has no fields")).hint = Some("only vectors and records have `.` access".into());
+                self.error(field.span, format!("{ty} has no fields")).hint =
+                    Some("only vectors and records have `.` access".into());
                 Typed::error()
             }
         }
@@ -233,7 +242,10 @@ impl Checker<'_> {
                 let ty = match declared {
                     Some(d) => {
                         if !t.ty.coerces_to(&d) {
-                            self.error(value.span, format!("`{}` is declared {d} but its value is {}", name.name, t.ty));
+                            self.error(
+                                value.span,
+                                format!("`{}` is declared {d} but its value is {}", name.name, t.ty),
+                            );
                         }
                         d
                     }
@@ -250,8 +262,8 @@ impl Checker<'_> {
                     return;
                 };
                 if !local.mutable {
-                    self.error(target.span, format!("cannot assign to `{}`: it is not a `var`", target.name))
-                        .hint = Some(format!("declare it with `var {} = …;` to make it mutable", target.name));
+                    self.error(target.span, format!("cannot assign to `{}`: it is not a `var`", target.name)).hint =
+                        Some(format!("declare it with `var {} = …;` to make it mutable", target.name));
                     return;
                 }
                 let result = match op {
@@ -261,7 +273,10 @@ impl Checker<'_> {
                 match result {
                     Some(r) if r.coerces_to(&local.ty) => {}
                     _ => {
-                        self.error(*span, format!("cannot assign {} to `{}`, which is {}", t.ty, target.name, local.ty));
+                        self.error(
+                            *span,
+                            format!("cannot assign {} to `{}`, which is {}", t.ty, target.name, local.ty),
+                        );
                     }
                 }
             }
@@ -271,8 +286,8 @@ impl Checker<'_> {
                     if !matches!(t.ty, Ty::Int | Ty::Error) {
                         self.error(e.span, format!("loop bounds must be int, found {}", t.ty));
                     } else if !t.konst {
-                        self.error(e.span, "loop bounds must be compile-time constants")
-                            .hint = Some("loops are unrolled; use a literal, a `const` or a `const` fn parameter".into());
+                        self.error(e.span, "loop bounds must be compile-time constants").hint =
+                            Some("loops are unrolled; use a literal, a `const` or a `const` fn parameter".into());
                     }
                 }
                 if let (ExprKind::Int(a), ExprKind::Int(b)) = (&start.kind, &end.kind) {
@@ -286,8 +301,8 @@ impl Checker<'_> {
                     self.check_stmt(s);
                 }
                 if let Some(tail) = &body.tail {
-                    self.error(tail.span, "a loop body has no value")
-                        .hint = Some("end the expression with `;`, or assign it: `acc += …;`".into());
+                    self.error(tail.span, "a loop body has no value").hint =
+                        Some("end the expression with `;`, or assign it: `acc += …;`".into());
                 }
                 self.locals.truncate(mark);
             }
@@ -321,7 +336,8 @@ impl Checker<'_> {
             None => match Builtin::from_name(&name.name) {
                 Some(b) => self.check_builtin_call(span, name, b, args),
                 None => {
-                    let mut names: Vec<String> = self.set.visible_names(self.module).into_iter().map(String::from).collect();
+                    let mut names: Vec<String> =
+                        self.set.visible_names(self.module).into_iter().map(String::from).collect();
                     names.extend(Builtin::names().map(String::from));
                     let hint = did_you_mean(&name.name, names.iter().map(|s| s.as_str()));
                     self.error(name.span, format!("unknown function `{}`", name.name)).hint =
@@ -364,12 +380,15 @@ impl Checker<'_> {
             let slot = match &arg.name {
                 None => {
                     if seen_named {
-                        self.error(arg.value.span, "positional argument after a named one")
-                            .hint = Some("put positional arguments first".into());
+                        self.error(arg.value.span, "positional argument after a named one").hint =
+                            Some("put positional arguments first".into());
                         continue;
                     }
                     if k >= sig.params.len() {
-                        self.error(arg.value.span, format!("`{}` takes at most {} arguments", name.name, sig.params.len()));
+                        self.error(
+                            arg.value.span,
+                            format!("`{}` takes at most {} arguments", name.name, sig.params.len()),
+                        );
                         continue;
                     }
                     k
@@ -379,9 +398,13 @@ impl Checker<'_> {
                     match sig.params.iter().position(|p| p.name == n.name) {
                         Some(i) => i,
                         None => {
-                            let hint = did_you_mean(&n.name, sig.params.iter().map(|p| p.name.as_str())).or_else(|| {
-                                Some(format!("its parameters are: {}", sig.params.iter().map(|p| p.name.as_str()).collect::<Vec<_>>().join(", ")))
-                            });
+                            let hint =
+                                did_you_mean(&n.name, sig.params.iter().map(|p| p.name.as_str())).or_else(|| {
+                                    Some(format!(
+                                        "its parameters are: {}",
+                                        sig.params.iter().map(|p| p.name.as_str()).collect::<Vec<_>>().join(", ")
+                                    ))
+                                });
                             self.error(n.span, format!("`{}` has no parameter `{}`", name.name, n.name)).hint = hint;
                             continue;
                         }
@@ -394,11 +417,17 @@ impl Checker<'_> {
             }
             let p = &sig.params[slot];
             if !t.ty.coerces_to(&p.ty) {
-                self.error(arg.value.span, format!("argument `{}` of `{}` expects {}, found {}", p.name, name.name, p.ty, t.ty))
-                    .label = format!("this is {}", t.ty);
+                self.error(
+                    arg.value.span,
+                    format!("argument `{}` of `{}` expects {}, found {}", p.name, name.name, p.ty, t.ty),
+                )
+                .label = format!("this is {}", t.ty);
             } else if p.is_const && !t.konst {
-                self.error(arg.value.span, format!("argument `{}` of `{}` must be a compile-time constant", p.name, name.name))
-                    .hint = Some("it drives unrolling; use a literal, a `const`, or a `const` parameter".into());
+                self.error(
+                    arg.value.span,
+                    format!("argument `{}` of `{}` must be a compile-time constant", p.name, name.name),
+                )
+                .hint = Some("it drives unrolling; use a literal, a `const`, or a `const` parameter".into());
             }
         }
         let missing: Vec<&str> = sig
@@ -409,7 +438,15 @@ impl Checker<'_> {
             .map(|(_, p)| p.name.as_str())
             .collect();
         if !missing.is_empty() {
-            self.error(span, format!("missing argument{} `{}` in call to `{}`", if missing.len() > 1 { "s" } else { "" }, missing.join("`, `"), name.name));
+            self.error(
+                span,
+                format!(
+                    "missing argument{} `{}` in call to `{}`",
+                    if missing.len() > 1 { "s" } else { "" },
+                    missing.join("`, `"),
+                    name.name
+                ),
+            );
         }
         Typed::new(sig.ret.clone(), false)
     }
@@ -417,7 +454,9 @@ impl Checker<'_> {
 
 fn binary_hint(op: BinOp, a: &Ty, b: &Ty) -> Option<String> {
     match op {
-        BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge if a.width().is_some_and(|w| w > 1) || b.width().is_some_and(|w| w > 1) => {
+        BinOp::Lt | BinOp::Le | BinOp::Gt | BinOp::Ge
+            if a.width().is_some_and(|w| w > 1) || b.width().is_some_and(|w| w > 1) =>
+        {
             Some("comparisons are between scalars; compare a component such as `.x`".into())
         }
         BinOp::And | BinOp::Or => Some("`&&` and `||` combine bools (comparisons)".into()),

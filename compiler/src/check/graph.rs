@@ -77,15 +77,21 @@ impl Checker<'_> {
                 }
                 GraphMember::Description(_, span) => {
                     if let Some(first) = description.replace(*span) {
-                        self.error(*span, "`description` is given twice").related.push((file, first, "first here".into()));
+                        self.error(*span, "`description` is given twice").related.push((
+                            file,
+                            first,
+                            "first here".into(),
+                        ));
                     }
                     continue;
                 }
                 GraphMember::Output { name, .. } => {
                     if let Some(first) = outputs.insert(name.name.clone(), name.span) {
-                        self.error(name.span, format!("output `{}` is defined twice", name.name))
-                            .related
-                            .push((file, first, "first here".into()));
+                        self.error(name.span, format!("output `{}` is defined twice", name.name)).related.push((
+                            file,
+                            first,
+                            "first here".into(),
+                        ));
                     }
                     continue;
                 }
@@ -145,18 +151,24 @@ impl Checker<'_> {
         for (out, _, kind) in OUTPUTS {
             let missing = match kind {
                 OutputKind::Required => !outputs.contains_key(*out),
-                OutputKind::HeightOrNormal => *out == "height" && !outputs.contains_key("height") && !outputs.contains_key("normal"),
+                OutputKind::HeightOrNormal => {
+                    *out == "height" && !outputs.contains_key("height") && !outputs.contains_key("normal")
+                }
                 OutputKind::Optional => false,
             };
             if missing {
-                let what = if *kind == OutputKind::HeightOrNormal { "`height` or `normal`".to_string() } else { format!("`{out}`") };
+                let what = if *kind == OutputKind::HeightOrNormal {
+                    "`height` or `normal`".to_string()
+                } else {
+                    format!("`{out}`")
+                };
                 let example = match *out {
                     "albedo" => "output albedo = vec3(0.5)",
                     "roughness" => "output roughness = 0.5",
                     _ => "output height = 0.0",
                 };
-                self.error(g.name.span, format!("graph `{}` has no {what} output", g.name.name))
-                    .hint = Some(format!("add e.g. `{example}`"));
+                self.error(g.name.span, format!("graph `{}` has no {what} output", g.name.name)).hint =
+                    Some(format!("add e.g. `{example}`"));
             }
         }
     }
@@ -177,7 +189,8 @@ impl Checker<'_> {
         let is_color = default.ty == Ty::Vec3;
         if is_color {
             if let Some((_, _, span)) = range {
-                self.error(span, "colour parameters have no range").hint = Some("each channel ranges over [0, 1] (linear)".into());
+                self.error(span, "colour parameters have no range").hint =
+                    Some("each channel ranges over [0, 1] (linear)".into());
             }
             if p.is_int {
                 self.error(p.span, "a colour parameter cannot be `int`");
@@ -194,8 +207,11 @@ impl Checker<'_> {
             return Ty::Error;
         }
         let Some((lo_t, hi_t, range_span)) = range else {
-            self.error(Span::new(p.span.start, p.default.span.end), format!("parameter `{}` needs a range", p.name.name))
-                .hint = Some(format!("e.g. `param {} = … in [0, 1]`", p.name.name));
+            self.error(
+                Span::new(p.span.start, p.default.span.end),
+                format!("parameter `{}` needs a range", p.name.name),
+            )
+            .hint = Some(format!("e.g. `param {} = … in [0, 1]`", p.name.name));
             return if p.is_int { Ty::Int } else { Ty::Float };
         };
         let (lo_e, hi_e, _) = p.range.as_ref().expect("range present");
@@ -209,7 +225,8 @@ impl Checker<'_> {
                 return Ty::Error;
             }
         }
-        let value = |c: &Checker, e: &ast::Expr| crate::lower::const_value(c.set, c.module, e).and_then(|v| v.first().copied());
+        let value =
+            |c: &Checker, e: &ast::Expr| crate::lower::const_value(c.set, c.module, e).and_then(|v| v.first().copied());
         let (Some(d), Some(lo), Some(hi)) = (value(self, &p.default), value(self, lo_e), value(self, hi_e)) else {
             return Ty::Error;
         };
@@ -223,11 +240,11 @@ impl Checker<'_> {
             }
         }
         if lo >= hi {
-            self.error(range_span, format!("empty range: the minimum {lo} is not below the maximum {hi}"))
-                .hint = Some("write the range as [min, max]".into());
+            self.error(range_span, format!("empty range: the minimum {lo} is not below the maximum {hi}")).hint =
+                Some("write the range as [min, max]".into());
         } else if d < lo || d > hi {
-            self.error(p.default.span, format!("default {d} is outside the range [{lo}, {hi}]"))
-                .label = "default here".into();
+            self.error(p.default.span, format!("default {d} is outside the range [{lo}, {hi}]")).label =
+                "default here".into();
         }
         if p.is_int {
             Ty::Int
@@ -256,7 +273,8 @@ impl Checker<'_> {
                 cycle.push(&id.name);
                 let msg = format!("cycle between nodes: {}", cycle.join(" → "));
                 drop(stack);
-                self.error(id.span, msg).hint = Some("a node cannot depend on itself, directly or through others".into());
+                self.error(id.span, msg).hint =
+                    Some("a node cannot depend on itself, directly or through others".into());
                 scope.state.borrow_mut().insert(id.name.clone(), NodeState::Done(Typed::error()));
                 Some(Typed::error())
             }

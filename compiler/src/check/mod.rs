@@ -126,8 +126,8 @@ impl<'a> Checker<'a> {
             // The first character (not byte: a file may start with a BOM).
             let first = self.set.sources.text(self.file).chars().next().map_or(0, char::len_utf8);
             let span = Span::new(0, first);
-            self.error(span, "this file defines no graph, function or constant")
-                .hint = Some("a material file needs `graph NAME { … }`; see docs/language.md".into());
+            self.error(span, "this file defines no graph, function or constant").hint =
+                Some("a material file needs `graph NAME { … }`; see docs/language.md".into());
         }
         for (index, item) in module.ast.items.iter().enumerate() {
             match item {
@@ -205,9 +205,11 @@ impl<'a> Checker<'a> {
         for p in &f.params {
             if let Some(first) = seen.insert(&p.name.name, p.name.span) {
                 let file = self.file;
-                self.error(p.name.span, format!("parameter `{}` appears twice", p.name.name))
-                    .related
-                    .push((file, first, "first here".into()));
+                self.error(p.name.span, format!("parameter `{}` appears twice", p.name.name)).related.push((
+                    file,
+                    first,
+                    "first here".into(),
+                ));
             }
             let ty = self.resolve_type(&p.ty);
             if p.is_const && !matches!(ty, Ty::Int | Ty::Float | Ty::Bool | Ty::Error) {
@@ -218,10 +220,13 @@ impl<'a> Checker<'a> {
                 let t = self.check_expr(default);
                 self.locals = saved;
                 if !t.ty.coerces_to(&ty) {
-                    self.error(default.span, format!("default of `{}` is {}, but the parameter is {ty}", p.name.name, t.ty));
+                    self.error(
+                        default.span,
+                        format!("default of `{}` is {}, but the parameter is {ty}", p.name.name, t.ty),
+                    );
                 } else if !t.konst {
-                    self.error(default.span, "a default must be a compile-time constant")
-                        .hint = Some("use a literal or a `const`".into());
+                    self.error(default.span, "a default must be a compile-time constant").hint =
+                        Some("use a literal or a `const`".into());
                 }
             }
             self.locals.push(Local { name: p.name.name.clone(), ty, mutable: false, konst: p.is_const });
@@ -230,8 +235,8 @@ impl<'a> Checker<'a> {
         let body = self.check_block(&f.body);
         if !body.ty.coerces_to(&ret) {
             let span = f.body.tail.as_ref().map_or(f.body.span, |t| t.span);
-            self.error(span, format!("`{}` returns {ret}, but its body is {}", f.name.name, body.ty))
-                .label = format!("this is {}", body.ty);
+            self.error(span, format!("`{}` returns {ret}, but its body is {}", f.name.name, body.ty)).label =
+                format!("this is {}", body.ty);
         }
         self.locals.clear();
         self.current_fn = None;
@@ -255,8 +260,8 @@ impl<'a> Checker<'a> {
         if module == self.module {
             self.diags.extend(inner.diags);
             if !t.konst {
-                self.error(def.value.span, format!("`{}` must be a compile-time constant", def.name.name))
-                    .hint = Some("constants may use literals, other constants and built-in math, not `uv` or params".into());
+                self.error(def.value.span, format!("`{}` must be a compile-time constant", def.name.name)).hint =
+                    Some("constants may use literals, other constants and built-in math, not `uv` or params".into());
             }
         }
         self.shared.const_types.borrow_mut().insert(item, Some((t.ty.clone(), t.konst)));
@@ -285,7 +290,8 @@ impl<'a> Checker<'a> {
                     match state.get(&g).copied() {
                         Some(1) => {
                             let start = path.iter().position(|&p| p == g).unwrap_or(0);
-                            let mut names: Vec<&str> = path[start..].iter().map(|&i| module.fn_def(i).name.name.as_str()).collect();
+                            let mut names: Vec<&str> =
+                                path[start..].iter().map(|&i| module.fn_def(i).name.name.as_str()).collect();
                             names.push(module.fn_def(g).name.name.as_str());
                             let key: Vec<usize> = {
                                 let mut k = path[start..].to_vec();

@@ -118,10 +118,7 @@ impl ForwardDiff {
                 }
             };
             for operand in carriers.into_iter().flatten() {
-                if self.active[operand.index()]
-                    && !self.derivatives.contains_key(&operand)
-                    && seen.insert(operand)
-                {
+                if self.active[operand.index()] && !self.derivatives.contains_key(&operand) && seen.insert(operand) {
                     stack.push(operand);
                 }
             }

@@ -81,12 +81,7 @@ pub fn adjoint(forward: &Program, wrt_params: &[u32]) -> Program {
 
     // A leaf occurs at most once in a hash-consed program, so its adjoint is the whole gradient.
     let gradient_of = |b: &mut Builder, leaf: Op| {
-        forward
-            .nodes
-            .iter()
-            .position(|op| *op == leaf)
-            .and_then(|i| adjoints[i])
-            .unwrap_or_else(|| b.constant(0.0))
+        forward.nodes.iter().position(|op| *op == leaf).and_then(|i| adjoints[i]).unwrap_or_else(|| b.constant(0.0))
     };
     let mut outputs = forward.outputs.clone();
     outputs.push(Output { name: "d_u".into(), node: gradient_of(&mut b, Op::U) });

@@ -22,11 +22,7 @@ impl Builder {
 
     /// A builder that continues an existing program (its nodes keep their ids).
     pub fn from_program(program: &Program) -> Self {
-        let mut b = Builder {
-            num_params: program.num_params,
-            num_seeds: program.num_seeds,
-            ..Default::default()
-        };
+        let mut b = Builder { num_params: program.num_params, num_seeds: program.num_seeds, ..Default::default() };
         for op in &program.nodes {
             let id = NodeId(b.nodes.len() as u32);
             b.nodes.push(*op);

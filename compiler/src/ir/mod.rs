@@ -90,7 +90,13 @@ pub enum Op {
 impl Op {
     pub fn constant(x: f32) -> Op {
         // One NaN and one zero, so that hash-consing sees equal values as equal.
-        let x = if x.is_nan() { f32::NAN } else if x == 0.0 { 0.0 } else { x };
+        let x = if x.is_nan() {
+            f32::NAN
+        } else if x == 0.0 {
+            0.0
+        } else {
+            x
+        };
         Op::Const(x.to_bits())
     }
 

@@ -72,7 +72,11 @@ impl Lowerer<'_> {
     fn select(&mut self, c: NodeId, a: &Value, b: &Value) -> Value {
         match (a, b) {
             (Value::Record(fa), Value::Record(fb)) => Value::Record(
-                fa.iter().zip(fb.iter()).map(|((n, x), (_, y))| (n.clone(), self.select(c, x, y))).collect::<Vec<_>>().into(),
+                fa.iter()
+                    .zip(fb.iter())
+                    .map(|((n, x), (_, y))| (n.clone(), self.select(c, x, y)))
+                    .collect::<Vec<_>>()
+                    .into(),
             ),
             _ => zip_with(&mut self.b, &[a.clone(), b.clone()], |b, v| b.select(c, v[0], v[1])),
         }
@@ -210,7 +214,9 @@ impl Lowerer<'_> {
                 let a = self.const_int(start)?;
                 let b = self.const_int(end)?;
                 if b - a > MAX_LOOP_TRIPS {
-                    return Err(self.error(*span, format!("this loop runs {} times; the limit is {MAX_LOOP_TRIPS}", b - a)));
+                    return Err(
+                        self.error(*span, format!("this loop runs {} times; the limit is {MAX_LOOP_TRIPS}", b - a))
+                    );
                 }
                 for i in a..b {
                     let mark = self.locals.len();
@@ -258,7 +264,13 @@ impl Lowerer<'_> {
         }
     }
 
-    fn inline_call(&mut self, span: Span, module: crate::module::ModuleId, index: usize, args: &[ast::Arg]) -> Lowered<Value> {
+    fn inline_call(
+        &mut self,
+        span: Span,
+        module: crate::module::ModuleId,
+        index: usize,
+        args: &[ast::Arg],
+    ) -> Lowered<Value> {
         let def = self.set.module(module).fn_def(index);
         let mut bound: Vec<Option<Value>> = vec![None; def.params.len()];
         for (k, arg) in args.iter().enumerate() {

@@ -162,7 +162,13 @@ pub fn lower_graph(set: &ModuleSet, module: ModuleId, g: &ast::GraphDef) -> Resu
                 let width = default.len() as u32;
                 let value = Value::Num((0..width).map(|k| l.b.param(slot + k)).collect());
                 env.params.insert(p.name.name.clone(), value);
-                params.push(ParamInfo { name: p.name.name.clone(), doc: p.doc.clone(), kind, default, slot: slot as usize });
+                params.push(ParamInfo {
+                    name: p.name.name.clone(),
+                    doc: p.doc.clone(),
+                    kind,
+                    default,
+                    slot: slot as usize,
+                });
                 slot += width;
             }
             GraphMember::Node { name, value, .. } => {

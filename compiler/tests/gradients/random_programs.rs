@@ -13,8 +13,8 @@ pub const NUM_PARAMS: u32 = 3;
 
 /// Every non-leaf op kind, in the order the generator's `kind` indexes them (0 is a constant).
 pub const OP_KINDS: [&str; 21] = [
-    "neg", "abs", "floor", "sqrt", "sin", "cos", "exp", "log", "add", "sub", "mul", "div", "min",
-    "max", "pow", "atan2", "hash", "lt", "le", "eq", "select",
+    "neg", "abs", "floor", "sqrt", "sin", "cos", "exp", "log", "add", "sub", "mul", "div", "min", "max", "pow",
+    "atan2", "hash", "lt", "le", "eq", "select",
 ];
 
 /// One generated node: an op kind, three operand picks and a constant (for kind 0).

@@ -344,7 +344,10 @@ pub fn check_gradients(
         // The fused program's forward part is the forward program, bit for bit.
         for c in 0..nch {
             if e[c].to_bits() != base[k][c].to_bits() && !(e[c].is_nan() && base[k][c].is_nan()) {
-                cov.failures.push(format!("{label}: fused forward channel {} = {} but forward = {}", CHANNELS[c], e[c], base[k][c]));
+                cov.failures.push(format!(
+                    "{label}: fused forward channel {} = {} but forward = {}",
+                    CHANNELS[c], e[c], base[k][c]
+                ));
             }
         }
     }
@@ -410,7 +413,16 @@ enum Outcome {
     Failed(String),
 }
 
-fn probe(forward: &Program, params: &[f32], (u, v): (f32, f32), var: Var, x0: f32, h: f32, seeds: &[f32; 9], exact: f32) -> Outcome {
+fn probe(
+    forward: &Program,
+    params: &[f32],
+    (u, v): (f32, f32),
+    var: Var,
+    x0: f32,
+    h: f32,
+    seeds: &[f32; 9],
+    exact: f32,
+) -> Outcome {
     // Five probe points, then four jittered copies of x (a few dozen ulps away) whose spread
     // measures the f32 rounding noise of the evaluated loss.
     let jitter = x0.abs().max(1.0) * f32::EPSILON * 16.0;
@@ -437,17 +449,18 @@ fn probe(forward: &Program, params: &[f32], (u, v): (f32, f32), var: Var, x0: f3
         return Outcome::Branch;
     }
     // The values themselves come from the interpreter.
-    let values: Vec<Vec<f32>> = lanes
-        .iter()
-        .map(|l| interp_points(forward, &l.params, &[l.u], &[l.v], &[]).remove(0))
-        .collect();
+    let values: Vec<Vec<f32>> =
+        lanes.iter().map(|l| interp_points(forward, &l.params, &[l.u], &[l.v], &[]).remove(0)).collect();
     for (l, s) in values.iter().zip(&sigs) {
         let mine = &s.as_ref().unwrap().0;
         if l.iter().zip(mine).any(|(a, b)| a.to_bits() != b.to_bits()) {
-            return Outcome::Failed(format!("the signature evaluator disagrees with the interpreter: {l:?} vs {mine:?}"));
+            return Outcome::Failed(format!(
+                "the signature evaluator disagrees with the interpreter: {l:?} vs {mine:?}"
+            ));
         }
     }
-    let loss: Vec<f64> = values.iter().map(|vals| vals.iter().zip(seeds).map(|(f, s)| (*f as f64) * (*s as f64)).sum()).collect();
+    let loss: Vec<f64> =
+        values.iter().map(|vals| vals.iter().zip(seeds).map(|(f, s)| (*f as f64) * (*s as f64)).sum()).collect();
     let scale: f32 = (0..values[0].len())
         .map(|c| seeds[c].abs() * values.iter().map(|vals| vals[c].abs()).fold(0.0, f32::max))
         .sum();
@@ -540,10 +553,8 @@ pub fn check_tiling(program: &Program, params: &[f32], rng: &mut Rng, n: usize) 
             rep.compared += 1;
             let Some(c) = mismatch(&base[k], &moved[k]) else { continue };
             let d = [1e-4f32, 1e-3];
-            let around: Vec<(f32, f32)> = d
-                .iter()
-                .flat_map(|&e| [(u + e, v), (u - e, v), (u, v + e), (u, v - e)])
-                .collect();
+            let around: Vec<(f32, f32)> =
+                d.iter().flat_map(|&e| [(u + e, v), (u - e, v), (u, v + e), (u, v - e)]).collect();
             let a0 = eval_at(&around, (0.0, 0.0));
             let a1 = eval_at(&around, shift);
             let matching = a0.iter().zip(&a1).filter(|(x, y)| mismatch(x, y).is_none()).count();

@@ -16,8 +16,7 @@ pub fn print_file(file: &File) -> String {
 }
 
 fn doc(doc: &Option<String>) -> String {
-    doc.as_ref()
-        .map_or(String::new(), |d| format!("  doc={d:?}"))
+    doc.as_ref().map_or(String::new(), |d| format!("  doc={d:?}"))
 }
 
 fn print_item(out: &mut String, item: &Item) {
@@ -26,29 +25,13 @@ fn print_item(out: &mut String, item: &Item) {
             let path: Vec<&str> = import.path.iter().map(|i| i.name.as_str()).collect();
             writeln!(out, "import {}", path.join(".")).unwrap();
         }
-        Item::Const(c) => writeln!(
-            out,
-            "const {} = {}{}",
-            c.name.name,
-            expr(&c.value),
-            doc(&c.doc)
-        )
-        .unwrap(),
+        Item::Const(c) => writeln!(out, "const {} = {}{}", c.name.name, expr(&c.value), doc(&c.doc)).unwrap(),
         Item::Fn(f) => {
             writeln!(out, "fn {} -> {}{}", f.name.name, ty(&f.ret), doc(&f.doc)).unwrap();
             for p in &f.params {
                 let konst = if p.is_const { "const " } else { "" };
-                let default = p
-                    .default
-                    .as_ref()
-                    .map_or(String::new(), |d| format!(" = {}", expr(d)));
-                writeln!(
-                    out,
-                    "  param {konst}{}: {}{default}",
-                    p.name.name,
-                    ty(&p.ty)
-                )
-                .unwrap();
+                let default = p.default.as_ref().map_or(String::new(), |d| format!(" = {}", expr(d)));
+                writeln!(out, "  param {konst}{}: {}{default}", p.name.name, ty(&p.ty)).unwrap();
             }
             print_block_lines(out, &f.body, 1);
         }
@@ -66,16 +49,10 @@ fn print_member(out: &mut String, member: &GraphMember) {
         GraphMember::Category(name, _) => format!("category {}", name.name),
         GraphMember::Description(text, _) => format!("description {text:?}"),
         GraphMember::Param(p) => {
-            let range = p.range.as_ref().map_or(String::new(), |(lo, hi, _)| {
-                format!(" in [{}, {}]", expr(lo), expr(hi))
-            });
+            let range =
+                p.range.as_ref().map_or(String::new(), |(lo, hi, _)| format!(" in [{}, {}]", expr(lo), expr(hi)));
             let int = if p.is_int { " int" } else { "" };
-            format!(
-                "param {} = {}{range}{int}{}",
-                p.name.name,
-                expr(&p.default),
-                doc(&p.doc)
-            )
+            format!("param {} = {}{range}{int}{}", p.name.name, expr(&p.default), doc(&p.doc))
         }
         GraphMember::Node { name, value, .. } => format!("node {} = {}", name.name, expr(value)),
         GraphMember::Const(c) => {
@@ -92,21 +69,8 @@ fn print_block_lines(out: &mut String, block: &Block, depth: usize) {
     let indent = "  ".repeat(depth);
     for s in &block.stmts {
         match s {
-            Stmt::For {
-                var,
-                start,
-                end,
-                body,
-                ..
-            } => {
-                writeln!(
-                    out,
-                    "{indent}for {} in {} .. {}",
-                    var.name,
-                    expr(start),
-                    expr(end)
-                )
-                .unwrap();
+            Stmt::For { var, start, end, body, .. } => {
+                writeln!(out, "{indent}for {} in {} .. {}", var.name, expr(start), expr(end)).unwrap();
                 print_block_lines(out, body, depth + 1);
             }
             other => writeln!(out, "{indent}{}", stmt(other)).unwrap(),
@@ -119,37 +83,17 @@ fn print_block_lines(out: &mut String, block: &Block, depth: usize) {
 
 fn stmt(s: &Stmt) -> String {
     match s {
-        Stmt::Let {
-            mutable,
-            name,
-            ty: t,
-            value,
-            ..
-        } => {
+        Stmt::Let { mutable, name, ty: t, value, .. } => {
             let kw = if *mutable { "var" } else { "let" };
             let t = t.as_ref().map_or(String::new(), |t| format!(": {}", ty(t)));
             format!("{kw} {}{t} = {}", name.name, expr(value))
         }
-        Stmt::Assign {
-            target, op, value, ..
-        } => {
+        Stmt::Assign { target, op, value, .. } => {
             let op = op.map_or("=".to_owned(), |op| format!("{}=", op.symbol()));
             format!("{} {op} {}", target.name, expr(value))
         }
-        Stmt::For {
-            var,
-            start,
-            end,
-            body,
-            ..
-        } => {
-            format!(
-                "for {} in {} .. {} {}",
-                var.name,
-                expr(start),
-                expr(end),
-                inline_block(body)
-            )
+        Stmt::For { var, start, end, body, .. } => {
+            format!("for {} in {} .. {} {}", var.name, expr(start), expr(end), inline_block(body))
         }
     }
 }
@@ -158,21 +102,14 @@ fn ty(t: &TypeExpr) -> String {
     match t {
         TypeExpr::Named(name) => name.name.clone(),
         TypeExpr::Record(fields, _) => {
-            let fields: Vec<String> = fields
-                .iter()
-                .map(|(n, t)| format!("{}: {}", n.name, ty(t)))
-                .collect();
+            let fields: Vec<String> = fields.iter().map(|(n, t)| format!("{}: {}", n.name, ty(t))).collect();
             format!("({})", fields.join(", "))
         }
     }
 }
 
 fn inline_block(block: &Block) -> String {
-    let mut parts: Vec<String> = block
-        .stmts
-        .iter()
-        .map(|s| format!("{};", stmt(s)))
-        .collect();
+    let mut parts: Vec<String> = block.stmts.iter().map(|s| format!("{};", stmt(s))).collect();
     if let Some(tail) = &block.tail {
         parts.push(expr(tail));
     }
@@ -201,10 +138,7 @@ pub fn expr(e: &Expr) -> String {
         }
         ExprKind::Field(x, field) => format!("(. {} {})", expr(x), field.name),
         ExprKind::Record(fields) => {
-            let fields: Vec<String> = fields
-                .iter()
-                .map(|(n, v)| format!("{}: {}", n.name, expr(v)))
-                .collect();
+            let fields: Vec<String> = fields.iter().map(|(n, v)| format!("{}: {}", n.name, expr(v))).collect();
             format!("(record {})", fields.join(", "))
         }
         ExprKind::If(c, a, b) => {
@@ -221,16 +155,9 @@ pub fn render_errors(src: &str, errors: &[ParseError]) -> String {
         let (line, col) = line_col(src, error.span.start);
         writeln!(out, "{line}:{col}: {}", error.message).unwrap();
         let text = src.lines().nth(line - 1).unwrap_or("");
-        let shown: String = text
-            .chars()
-            .map(|c| if c.is_control() { '?' } else { c })
-            .collect();
+        let shown: String = text.chars().map(|c| if c.is_control() { '?' } else { c }).collect();
         writeln!(out, "  | {shown}").unwrap();
-        let width = src[error.span.start..error.span.end]
-            .chars()
-            .take_while(|&c| c != '\n')
-            .count()
-            .max(1);
+        let width = src[error.span.start..error.span.end].chars().take_while(|&c| c != '\n').count().max(1);
         writeln!(out, "  | {}{}", " ".repeat(col - 1), "^".repeat(width)).unwrap();
         if let Some(hint) = &error.hint {
             writeln!(out, "  = hint: {hint}").unwrap();
@@ -322,35 +249,18 @@ fn block_spans(block: &Block, f: &mut dyn FnMut(&str, Span)) {
     f("block", block.span);
     for s in &block.stmts {
         match s {
-            Stmt::Let {
-                name,
-                ty,
-                value,
-                span,
-                ..
-            } => {
+            Stmt::Let { name, ty, value, span, .. } => {
                 f("let", *span);
                 ident(name, f);
                 ty.iter().for_each(|t| type_spans(t, f));
                 expr_spans(value, f);
             }
-            Stmt::Assign {
-                target,
-                value,
-                span,
-                ..
-            } => {
+            Stmt::Assign { target, value, span, .. } => {
                 f("assign", *span);
                 ident(target, f);
                 expr_spans(value, f);
             }
-            Stmt::For {
-                var,
-                start,
-                end,
-                body,
-                span,
-            } => {
+            Stmt::For { var, start, end, body, span } => {
                 f("for", *span);
                 ident(var, f);
                 expr_spans(start, f);

@@ -48,7 +48,13 @@ pub enum OpSet {
 const TRANSCENDENTAL: [usize; 6] = [4, 5, 6, 7, 14, 15];
 
 /// Builds a random DAG: `spec` entries are (op kind, operand picks); `consts` seed the leaves.
-pub fn random_program(spec: &[(u8, u32, u32, u32)], consts: &[f32], num_seeds: u32, outs: &[u32], set: OpSet) -> Program {
+pub fn random_program(
+    spec: &[(u8, u32, u32, u32)],
+    consts: &[f32],
+    num_seeds: u32,
+    outs: &[u32],
+    set: OpSet,
+) -> Program {
     let mut b = Builder::new();
     let mut pool: Vec<NodeId> = vec![b.u(), b.v(), b.param(0), b.param(1), b.param(2)];
     for s in 0..num_seeds {

@@ -51,7 +51,8 @@ pub fn room_obj(uvs: bool) -> String {
 pub const MTL: &str = "newmtl floor\nKd 0.5 0.4 0.3\nnewmtl ceiling\nKd 0.8 0.8 0.8\nnewmtl walls\nKd 0.6 0.6 0.6\nnewmtl crate\nKd 0.3 0.5 0.2\n";
 
 /// Emits downwards (−y) from just below the ceiling.
-pub const LIGHT_OBJ: &str = "v 1.5 2.49 1.5\nv 2.5 2.49 1.5\nv 2.5 2.49 2.5\nv 1.5 2.49 2.5\nvn 0 -1 0\nf 1//1 2//1 3//1 4//1\n";
+pub const LIGHT_OBJ: &str =
+    "v 1.5 2.49 1.5\nv 2.5 2.49 1.5\nv 2.5 2.49 2.5\nv 1.5 2.49 2.5\nvn 0 -1 0\nf 1//1 2//1 3//1 4//1\n";
 
 pub const W: usize = 40;
 pub const H: usize = 30;
@@ -78,7 +79,8 @@ pub fn manifest(camera: &str, part_labels: &str) -> String {
     )
 }
 
-pub const GOOD_CAMERA: &str = r#"{ "position": [2.0, 1.4, 3.8], "look_at": [2.0, 0.8, 1.0], "up": [0, 1, 0], "fov_y_deg": 60.0 }"#;
+pub const GOOD_CAMERA: &str =
+    r#"{ "position": [2.0, 1.4, 3.8], "look_at": [2.0, 0.8, 1.0], "up": [0, 1, 0], "fov_y_deg": 60.0 }"#;
 pub const GOOD_LABELS: &str = r#"{ "1": "floor", "2": "walls", "3": "crate" }"#;
 
 /// Write a complete, valid scene; tests then break one thing.
