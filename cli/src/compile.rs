@@ -1,7 +1,7 @@
 //! `psc compile <files or folders>`: check every graph and report what it compiled to.
 
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
@@ -43,7 +43,9 @@ pub fn collect_sources(paths: &[PathBuf]) -> Result<Vec<PathBuf>, Failure> {
     let mut out = Vec::new();
     for p in paths {
         if p.is_dir() {
-            walk(p, &mut out).map_err(|e| Failure(format!("cannot read folder {}: {e}", p.display())))?;
+            let found = psc_compiler::find_sources(p)
+                .map_err(|e| Failure(format!("cannot read folder {}: {e}", p.display())))?;
+            out.extend(found);
         } else if p.exists() {
             out.push(p.clone());
         } else {
@@ -53,19 +55,6 @@ pub fn collect_sources(paths: &[PathBuf]) -> Result<Vec<PathBuf>, Failure> {
     out.sort();
     out.dedup();
     Ok(out)
-}
-
-fn walk(dir: &Path, out: &mut Vec<PathBuf>) -> std::io::Result<()> {
-    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)?.filter_map(|e| e.ok().map(|e| e.path())).collect();
-    entries.sort();
-    for path in entries {
-        if path.is_dir() {
-            walk(&path, out)?;
-        } else if path.extension().is_some_and(|e| e == "psg") {
-            out.push(path);
-        }
-    }
-    Ok(())
 }
 
 pub fn run(args: Args) -> Result<ExitCode, Failure> {

@@ -24,4 +24,4 @@ pub mod session;
 pub mod types;
 
 pub use graph::{CompiledGraph, GraphInfo, ParamInfo, ParamKind, CHANNELS};
-pub use session::{compile_files, compile_text, CompileOutput, Options};
+pub use session::{compile_files, compile_text, find_sources, CompileOutput, Options};

@@ -140,3 +140,21 @@ fn depends_on_bad_file(set: &ModuleSet, root: ModuleId, bad: &HashSet<FileId>) -
     }
     false
 }
+
+/// Every `.psg` file under `dir`, recursively, sorted (so compilations and reports are stable).
+pub fn find_sources(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d)? {
+            let path = entry?.path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "psg") {
+                out.push(path);
+            }
+        }
+    }
+    out.sort();
+    Ok(out)
+}

@@ -8,17 +8,19 @@
 //!                "albedo_scale": [1, 1, 1], "roughness_scale": 1 },
 //!     "walls": { "graph": "painted_wall" } } }
 //! ```
-//! Parameters not given keep their defaults; colours are linear RGB; every value is checked
-//! against the parameter's range. Parts not listed keep the scene's own (MTL) material.
+//! `params` has the format of `psc bake --params` ([`crate::bake::params_from_json`]):
+//! parameters not given keep their defaults; colours are linear `[r, g, b]` or
+//! `{"srgb": [r, g, b]}`; every value is checked against the parameter's range. Parts not listed
+//! keep the scene's own (MTL) material.
 
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
 
-use psc_compiler::{GraphInfo, ParamKind};
 use psc_render::material::MaterialBinding;
 use serde::Deserialize;
 
+use crate::bake::params_from_json;
 use crate::library::Library;
 use crate::material::ProceduralMaterial;
 
@@ -32,8 +34,8 @@ struct AssignmentFile {
 #[serde(deny_unknown_fields)]
 struct PartAssignment {
     graph: String,
-    #[serde(default)]
-    params: BTreeMap<String, serde_json::Value>,
+    #[serde(default = "empty_object")]
+    params: serde_json::Value,
     #[serde(default)]
     uv_scale: Option<UvScale>,
     #[serde(default)]
@@ -74,7 +76,7 @@ pub fn apply_assignment(
             let names: Vec<&str> = library.names().collect();
             at(format!("no graph `{}` in the library (graphs: {})", a.graph, names.join(", ")))
         })?;
-        let params = resolve_params(&material.graph.info, &a.params).map_err(at)?;
+        let params = params_from_json(&material.graph.info, &a.params).map_err(at)?;
         let procedural = ProceduralMaterial::new(material.clone(), params).map_err(at)?;
         let uv_transform = uv_transform(a).map_err(at)?;
         let albedo_scale = a.albedo_scale.unwrap_or([1.0; 3]);
@@ -88,34 +90,8 @@ pub fn apply_assignment(
     Ok(())
 }
 
-/// The graph's defaults with the given parameters applied, each checked against its range.
-pub fn resolve_params(info: &GraphInfo, given: &BTreeMap<String, serde_json::Value>) -> Result<Vec<f32>, String> {
-    let mut params = info.default_params();
-    for (name, value) in given {
-        let p = info.param(name).ok_or_else(|| {
-            let names: Vec<&str> = info.params.iter().map(|p| p.name.as_str()).collect();
-            format!("graph `{}` has no parameter `{name}` (parameters: {})", info.name, names.join(", "))
-        })?;
-        let values: Vec<f64> = match value {
-            serde_json::Value::Number(n) => vec![n.as_f64().unwrap_or(f64::NAN)],
-            serde_json::Value::Array(items) => items.iter().map(|x| x.as_f64().unwrap_or(f64::NAN)).collect(),
-            other => return Err(format!("parameter `{name}` must be a number or an array of numbers, not {other}")),
-        };
-        if values.len() != p.width() {
-            return Err(format!("parameter `{name}` takes {} value(s), got {}", p.width(), values.len()));
-        }
-        let (lo, hi) = p.bounds();
-        for (k, &x) in values.iter().enumerate() {
-            if !x.is_finite() || (x as f32) < lo || (x as f32) > hi {
-                return Err(format!("parameter `{name}` = {x} is outside its range [{lo}, {hi}]"));
-            }
-            if matches!(p.kind, ParamKind::Discrete { .. }) && x.fract() != 0.0 {
-                return Err(format!("parameter `{name}` is an integer, got {x}"));
-            }
-            params[p.slot + k] = x as f32;
-        }
-    }
-    Ok(params)
+fn empty_object() -> serde_json::Value {
+    serde_json::Value::Object(Default::default())
 }
 
 fn uv_transform(a: &PartAssignment) -> Result<[[f32; 3]; 2], String> {

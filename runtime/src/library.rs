@@ -115,22 +115,11 @@ pub fn default_library_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("graphs")
 }
 
-/// Every `.psg` file under `root`, sorted, excluding the `std/` module folder.
+/// Every `.psg` file under `root`, sorted, excluding `std/` module folders.
 pub fn psg_files(root: &Path) -> std::io::Result<Vec<PathBuf>> {
-    let mut out = Vec::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(dir) = stack.pop() {
-        for entry in std::fs::read_dir(&dir)? {
-            let path = entry?.path();
-            if path.is_dir() {
-                if path.file_name().is_some_and(|n| n != "std") {
-                    stack.push(path);
-                }
-            } else if path.extension().is_some_and(|e| e == "psg") {
-                out.push(path);
-            }
-        }
-    }
-    out.sort();
-    Ok(out)
+    let mut files = psc_compiler::find_sources(root)?;
+    files.retain(|p| {
+        !p.strip_prefix(root).unwrap_or(p).parent().is_some_and(|d| d.components().any(|c| c.as_os_str() == "std"))
+    });
+    Ok(files)
 }

@@ -43,7 +43,7 @@ impl SurfaceMaterial for ProceduralMaterial {
     /// pool), since the path tracer shades one hit at a time.
     fn eval(&self, uv: [f32; 2]) -> SurfaceSample {
         let mut columns = [[0.0f32; 1]; CHANNELS.len()];
-        let mut outputs: Vec<&mut [f32]> = columns.iter_mut().map(|c| &mut c[..]).collect();
+        let mut outputs = columns.each_mut().map(|c| &mut c[..]);
         match self.material.kernel.forward_jit().run(&self.params, &[uv[0]], &[uv[1]], &[], &mut outputs) {
             Ok(()) => {
                 let c = |i: usize| columns[i][0];

@@ -186,10 +186,7 @@ pub fn lower_graph(set: &ModuleSet, module: ModuleId, g: &ast::GraphDef) -> Resu
     for member in &g.members {
         if let GraphMember::Output { name, value, .. } = member {
             let v = l.lower_expr(value)?;
-            outs.insert(
-                crate::check::OUTPUTS.iter().map(|(n, _, _)| *n).find(|n| *n == name.name).unwrap_or("albedo"),
-                v,
-            );
+            outs.insert(name.name.as_str(), v);
         }
     }
     let zero = l.b.constant(0.0);

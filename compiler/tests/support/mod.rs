@@ -21,20 +21,7 @@ pub fn graphs_dir() -> PathBuf {
 
 /// Every `.psg` under `dir`, recursively, sorted.
 pub fn psg_files_under(dir: &Path) -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap_or_else(|e| panic!("reading {}: {e}", d.display())) {
-            let path = e.unwrap().path();
-            if path.is_dir() {
-                stack.push(path);
-            } else if path.extension().is_some_and(|x| x == "psg") {
-                out.push(path);
-            }
-        }
-    }
-    out.sort();
-    out
+    psc_compiler::find_sources(dir).unwrap_or_else(|e| panic!("reading {}: {e}", dir.display()))
 }
 
 /// The material graph files: everything under `graphs/` except `graphs/std/`.
