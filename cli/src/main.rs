@@ -44,7 +44,21 @@ impl<E: std::fmt::Display> From<E> for Failure {
     }
 }
 
+/// Rust ignores SIGPIPE, so `psc library | head` would panic inside `println!` once the reader
+/// goes away; a command-line tool should simply stop, as every Unix tool does.
+#[cfg(unix)]
+fn restore_default_sigpipe() {
+    // SAFETY: called once at start-up, before any other thread exists; SIG_DFL is a valid handler.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
+#[cfg(not(unix))]
+fn restore_default_sigpipe() {}
+
 fn main() -> ExitCode {
+    restore_default_sigpipe();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Compile(args) => compile::run(args),
