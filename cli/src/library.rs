@@ -32,6 +32,10 @@ pub struct Args {
     /// Graphs per sheet row (each graph takes 1 + variants cells).
     #[arg(long, default_value_t = 2)]
     pub per_row: usize,
+    /// Also compile every graph's fused forward+adjoint kernel (normally compiled on first use
+    /// by the fit) and report the time.
+    #[arg(long)]
+    pub gradients: bool,
     /// Also time a bake of every graph at this size (e.g. 2048) and report the slowest.
     #[arg(long)]
     pub bench: Option<usize>,
@@ -64,6 +68,15 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         library.jit_time.as_secs_f64(),
         started.elapsed().as_secs_f64()
     );
+    if args.gradients {
+        let gradients = library.compile_gradients().map_err(|e| Failure(e.to_string()))?;
+        println!(
+            "gradient kernels: {:.2} s more ({} fused forward+adjoint kernels); library JIT in all {:.2} s",
+            gradients.as_secs_f64(),
+            library.materials.len(),
+            (library.jit_time + gradients).as_secs_f64()
+        );
+    }
     println!("{:<26} {:<14} {:>6} {:>6} {:>8}", "graph", "category", "params", "slots", "ops");
     for m in &materials {
         let info = &m.graph.info;

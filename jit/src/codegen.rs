@@ -1,25 +1,27 @@
 //! Cranelift code generation: one function per program, structure-of-arrays, `F32X4` lanes.
 //!
 //! Generated signature (see [`crate::abi`]):
-//! `extern "C" fn(params: *const f32, inputs: *const *const f32, outputs: *const *mut f32, n: usize)`
-//! with `inputs = [u, v, seed0, seed1, …]` and one output column per program output.
+//! `extern "C" fn(params: *const [f32; 4], constants: *const [f32; 4], inputs: *const *const f32,
+//! outputs: *const *mut f32, n: usize)`: parameters and constants splatted to 16-byte aligned
+//! lanes, `inputs = [u, v, seed0, seed1, …]` and one output column per program output.
 //!
 //! Shape of the function:
 //! - main loop: `groups` independent 4-lane vectors per iteration (4·groups points), the
 //!   program emitted node by node with the groups interleaved, so each node's `groups`
 //!   instances are independent chains the CPU can overlap;
-//! - tail loop: one vector per iteration whose lanes read point `min(i + j, n - 1)` and are
-//!   stored in reverse lane order, so padding lanes (which all repeat point `n - 1`) are
-//!   overwritten by the real lane last. Branch-free, in bounds for every `n ≥ 1`, and `n = 0`
-//!   never enters it.
+//! - no tail loop: `n` must be a multiple of 4·groups ([`crate::abi`] runs the last partial
+//!   block on padded copies). Emitting the program once instead of twice halves compile time;
+//! - leaves (constants, parameters, column loads) are re-emitted at each use, so the only
+//!   long-lived values are the ones the program itself keeps.
 //!
 //! The generated code makes no calls (no libm, no libcalls: transcendentals are inline
 //! polynomials, rounding uses SSE4.1/NEON instructions, FMA is only used when native).
 
 use std::collections::HashMap;
 
+use cranelift_codegen::entity::packed_option::ReservedValue;
+use cranelift_codegen::ir::Type;
 use cranelift_codegen::ir::{condcodes::FloatCC, condcodes::IntCC, types, AbiParam, InstBuilder, MemFlagsData, Value};
-use cranelift_codegen::ir::{ConstantData, Type};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
 use cranelift_jit::{JITBuilder, JITModule};
@@ -35,6 +37,10 @@ pub(crate) struct Built {
     pub module: JITModule,
     pub func: FuncId,
     pub fused: bool,
+    /// Vectors per loop iteration.
+    pub groups: usize,
+    /// The constant table the kernel reads (its second argument), as lane bit patterns.
+    pub constants: Vec<u32>,
 }
 
 pub(crate) fn build(program: &Program, opts: &Options) -> Result<Built, JitError> {
@@ -62,30 +68,30 @@ pub(crate) fn build(program: &Program, opts: &Options) -> Result<Built, JitError
     let mut module = JITModule::new(JITBuilder::with_isa(isa, default_libcall_names()));
     let mut ctx = module.make_context();
     let mut sig = module.make_signature();
-    for _ in 0..4 {
+    for _ in 0..5 {
         sig.params.push(AbiParam::new(ptr));
     }
     let func = module.declare_anonymous_function(&sig).map_err(|e| cg(&e))?;
     ctx.func.signature = sig;
+    let groups = opts.groups.clamp(1, 4);
+    let constants;
     let mut fctx = FunctionBuilderContext::new();
     {
         let mut b = FunctionBuilder::new(&mut ctx.func, &mut fctx);
-        let mut lanes = Lanes { b: &mut b, fused, consts: HashMap::new() };
-        define(&mut lanes, program, opts.groups.clamp(1, 4), ptr);
+        let mut lanes = Lanes { b: &mut b, fused, table: Value::reserved_value(), constants: ConstTable::default() };
+        define(&mut lanes, program, groups, ptr);
+        constants = lanes.constants.bits;
         b.seal_all_blocks();
         b.finalize(module.target_config());
     }
+    let disasm = std::env::var_os("PSC_JIT_DISASM").is_some();
+    ctx.set_disasm(disasm);
     module.define_function(func, &mut ctx).map_err(|e| cg(&e))?;
+    if disasm {
+        eprintln!("{}", ctx.compiled_code().and_then(|c| c.vcode.clone()).unwrap_or_default());
+    }
     module.clear_context(&mut ctx);
-    Ok(Built { module, func, fused })
-}
-
-/// How leaves read their per-point column in the current loop.
-enum Access {
-    /// Vector loads at `base + 16·group`; `base` is the byte offset of point `i`.
-    Direct { base: Value },
-    /// One vector whose lane `j` reads byte offset `offs[j]` (clamped indices).
-    Gather { offs: [Value; 4] },
+    Ok(Built { module, func, fused, groups, constants })
 }
 
 fn mem() -> MemFlagsData {
@@ -93,15 +99,22 @@ fn mem() -> MemFlagsData {
     MemFlagsData::new().with_notrap()
 }
 
+/// Reads of the splatted parameter and constant tables: 16-byte aligned, never written while
+/// the kernel runs, always in bounds.
+fn table_mem() -> MemFlagsData {
+    MemFlagsData::new().with_notrap().with_aligned().with_readonly()
+}
+
 fn define(a: &mut Lanes, program: &Program, groups: usize, ptr: Type) {
     let b = &mut *a.b;
     let entry = b.create_block();
     b.append_block_params_for_function_params(entry);
     b.switch_to_block(entry);
-    let (params, inputs, outputs, n) = {
+    let (params, table, inputs, outputs, n) = {
         let p = b.block_params(entry);
-        (p[0], p[1], p[2], p[3])
+        (p[0], p[1], p[2], p[3], p[4])
     };
+    a.table = table;
     let ptr_bytes = ptr.bytes() as i32;
     let in_cols: Vec<Value> =
         (0..2 + program.num_seeds).map(|k| b.ins().load(ptr, mem(), inputs, ptr_bytes * k as i32)).collect();
@@ -109,164 +122,126 @@ fn define(a: &mut Lanes, program: &Program, groups: usize, ptr: Type) {
         (0..program.outputs.len()).map(|k| b.ins().load(ptr, mem(), outputs, ptr_bytes * k as i32)).collect();
     let header = b.create_block();
     let body = b.create_block();
-    let tail_header = b.create_block();
-    let tail_body = b.create_block();
     let exit = b.create_block();
     let i_main = b.append_block_param(header, ptr);
-    let i_tail = b.append_block_param(tail_header, ptr);
     let zero = b.ins().iconst(ptr, 0);
     b.ins().jump(header, &[zero.into()]);
 
-    // Main loop header: run the body while a whole block of 4·groups points remains.
+    // `n` is a multiple of 4·groups (the caller pads the tail), so one loop covers every point.
     b.switch_to_block(header);
-    let step = b.ins().iconst(ptr, 4 * groups as i64);
-    let end = b.ins().iadd(i_main, step);
-    let fits = b.ins().icmp(IntCC::UnsignedLessThanOrEqual, end, n);
-    b.ins().brif(fits, body, &[], tail_header, &[i_main.into()]);
+    let more = b.ins().icmp(IntCC::UnsignedLessThan, i_main, n);
+    b.ins().brif(more, body, &[], exit, &[]);
 
     b.switch_to_block(body);
     let two = b.ins().iconst(ptr, 2);
     let base = b.ins().ishl(i_main, two);
-    emit_program(a, program, params, &in_cols, &out_cols, &Access::Direct { base }, groups);
-    a.b.ins().jump(header, &[end.into()]);
-
-    // Tail: one clamped vector per iteration until every point is written.
+    emit_program(a, program, &out_cols, Leaves { params, in_cols: &in_cols, base }, groups);
     let b = &mut *a.b;
-    b.switch_to_block(tail_header);
-    let more = b.ins().icmp(IntCC::UnsignedLessThan, i_tail, n);
-    b.ins().brif(more, tail_body, &[], exit, &[]);
-
-    b.switch_to_block(tail_body);
-    let one = b.ins().iconst(ptr, 1);
-    let last = b.ins().isub(n, one);
-    let two = b.ins().iconst(ptr, 2);
-    let offs: [Value; 4] = std::array::from_fn(|j| {
-        let jj = b.ins().iconst(ptr, j as i64);
-        let idx = b.ins().iadd(i_tail, jj);
-        let idx = b.ins().umin(idx, last);
-        b.ins().ishl(idx, two)
-    });
-    emit_program(a, program, params, &in_cols, &out_cols, &Access::Gather { offs }, 1);
-    let b = &mut *a.b;
-    let four = b.ins().iconst(ptr, 4);
-    let next = b.ins().iadd(i_tail, four);
-    b.ins().jump(tail_header, &[next.into()]);
+    let step = b.ins().iconst(ptr, 4 * groups as i64);
+    let next = b.ins().iadd(i_main, step);
+    b.ins().jump(header, &[next.into()]);
 
     b.switch_to_block(exit);
     b.ins().return_(&[]);
 }
 
 /// Emits every live node for `groups` vectors, storing outputs as soon as they are computed.
-fn emit_program(
-    a: &mut Lanes,
-    program: &Program,
-    params: Value,
-    in_cols: &[Value],
-    out_cols: &[Value],
-    access: &Access,
-    groups: usize,
-) {
+fn emit_program(a: &mut Lanes, program: &Program, out_cols: &[Value], leaves: Leaves, groups: usize) {
     let live = live_nodes(program);
     let mut outputs_of: HashMap<usize, Vec<usize>> = HashMap::new();
     for (k, out) in program.outputs.iter().enumerate() {
         outputs_of.entry(out.node.index()).or_default().push(k);
     }
-    // Fresh per block: cached constants must be defined in a block dominating their uses.
-    a.consts.clear();
     let mut vals: Vec<Vec<Value>> = vec![Vec::new(); program.nodes.len()];
     for (i, op) in program.nodes.iter().enumerate() {
         if !live[i] {
             continue;
         }
-        vals[i] = match *op {
-            Op::Const(bits) => vec![a.f(f32::from_bits(bits)); groups],
-            Op::Param(p) => {
-                let s = a.b.ins().load(types::F32, mem(), params, 4 * p as i32);
-                vec![a.b.ins().splat(types::F32X4, s); groups]
-            }
-            Op::U => load_column(a, in_cols[0], access, groups),
-            Op::V => load_column(a, in_cols[1], access, groups),
-            Op::Seed(s) => load_column(a, in_cols[2 + s as usize], access, groups),
-            _ => (0..groups)
+        if !op.is_leaf() {
+            vals[i] = (0..groups)
                 .map(|g| {
-                    let mut it = op.operands().map(|id| vals[id.index()][g]);
+                    let mut it = op.operands().map(|id| operand(a, program, &vals, id.index(), g, leaves));
                     let x = it.next().expect("non-leaf has an operand");
                     let y = it.next().unwrap_or(x);
                     let z = it.next().unwrap_or(x);
                     eval_op(a, op, x, y, z)
                 })
-                .collect(),
-        };
+                .collect();
+        }
         if let Some(ks) = outputs_of.get(&i) {
             for &k in ks {
-                for (g, &value) in vals[i].iter().enumerate() {
-                    store_column(a, out_cols[k], access, g, value);
+                for g in 0..groups {
+                    let value = operand(a, program, &vals, i, g, leaves);
+                    store_column(a, out_cols[k], leaves.base, g, value);
                 }
             }
         }
     }
 }
 
-fn load_column(a: &mut Lanes, col: Value, access: &Access, groups: usize) -> Vec<Value> {
-    let b = &mut *a.b;
-    match access {
-        Access::Direct { base } => {
-            let addr = b.ins().iadd(col, *base);
-            (0..groups).map(|g| b.ins().load(types::F32X4, mem(), addr, 16 * g as i32)).collect()
-        }
-        Access::Gather { offs } => {
-            let lane = |b: &mut FunctionBuilder, j: usize| {
-                let addr = b.ins().iadd(col, offs[j]);
-                b.ins().load(types::F32, mem(), addr, 0)
-            };
-            let l0 = lane(b, 0);
-            let mut v = b.ins().scalar_to_vector(types::F32X4, l0);
-            for j in 1..4 {
-                let l = lane(b, j);
-                v = b.ins().insertlane(v, l, j as u8);
-            }
-            vec![v]
-        }
+/// Where leaves read from inside the loop body.
+#[derive(Clone, Copy)]
+struct Leaves<'c> {
+    params: Value,
+    in_cols: &'c [Value],
+    base: Value,
+}
+
+/// The value of node `i` for vector group `g`. Leaves are re-emitted at every use rather than
+/// once per iteration: a parameter broadcast or a column load is one instruction, while a
+/// value held from the top of a long body costs a register or a spill slot throughout.
+fn operand(a: &mut Lanes, program: &Program, vals: &[Vec<Value>], i: usize, g: usize, leaves: Leaves) -> Value {
+    match program.nodes[i] {
+        Op::Const(bits) => a.f(f32::from_bits(bits)),
+        Op::Param(p) => a.b.ins().load(types::F32X4, table_mem(), leaves.params, 16 * p as i32),
+        Op::U => load_column(a, leaves.in_cols[0], leaves.base, g),
+        Op::V => load_column(a, leaves.in_cols[1], leaves.base, g),
+        Op::Seed(s) => load_column(a, leaves.in_cols[2 + s as usize], leaves.base, g),
+        _ => vals[i][g],
     }
 }
 
-fn store_column(a: &mut Lanes, col: Value, access: &Access, g: usize, v: Value) {
-    let b = &mut *a.b;
-    match access {
-        Access::Direct { base } => {
-            let addr = b.ins().iadd(col, *base);
-            b.ins().store(mem(), v, addr, 16 * g as i32);
-        }
-        Access::Gather { offs } => {
-            // Reverse order: padding lanes alias point n-1, whose real lane is stored last.
-            for j in (0..4).rev() {
-                let e = b.ins().extractlane(v, j as u8);
-                let addr = b.ins().iadd(col, offs[j]);
-                b.ins().store(mem(), e, addr, 0);
-            }
-        }
-    }
+fn load_column(a: &mut Lanes, col: Value, base: Value, g: usize) -> Value {
+    let addr = a.b.ins().iadd(col, base);
+    a.b.ins().load(types::F32X4, mem(), addr, 16 * g as i32)
+}
+
+fn store_column(a: &mut Lanes, col: Value, base: Value, g: usize, v: Value) {
+    let addr = a.b.ins().iadd(col, base);
+    a.b.ins().store(mem(), v, addr, 16 * g as i32);
+}
+
+/// Splatted constants, deduplicated by lane type and bits, in the order the kernel's constant
+/// table holds them.
+#[derive(Default)]
+struct ConstTable {
+    index: HashMap<u32, i32>,
+    bits: Vec<u32>,
 }
 
 /// [`Arith`] over cranelift `F32X4` / `I32X4` values.
+///
+/// Every use of a constant is its own aligned load from the constant table (the kernel's
+/// second argument) rather than a value materialised once: a load with one use is folded
+/// into its consumer as a memory operand, so constants cost no instruction and no register,
+/// where a materialised splat would stay live across the body and be spilled (regalloc2 does
+/// not rematerialise).
 struct Lanes<'a, 'f> {
     b: &'a mut FunctionBuilder<'f>,
     fused: bool,
-    /// Splat constants already materialised in the current block, by type and bits.
-    consts: HashMap<(bool, u32), Value>,
+    table: Value,
+    constants: ConstTable,
 }
 
 impl Lanes<'_, '_> {
     fn vconst(&mut self, float: bool, bits: u32) -> Value {
-        if let Some(&v) = self.consts.get(&(float, bits)) {
-            return v;
+        let next = self.constants.bits.len() as i32;
+        let slot = *self.constants.index.entry(bits).or_insert(next);
+        if slot == next {
+            self.constants.bits.push(bits);
         }
-        let bytes: Vec<u8> = bits.to_le_bytes().repeat(4);
-        let handle = self.b.func.dfg.constants.insert(ConstantData::from(bytes));
         let ty = if float { types::F32X4 } else { types::I32X4 };
-        let v = self.b.ins().vconst(ty, handle);
-        self.consts.insert((float, bits), v);
-        v
+        self.b.ins().load(ty, table_mem(), self.table, 16 * slot)
     }
 }
 

@@ -106,6 +106,8 @@ pub fn compile_with(program: &Program, options: &Options) -> Result<CompiledKern
         program.num_params,
         program.num_seeds,
         program.outputs.len(),
+        4 * built.groups,
+        &built.constants,
     )?;
     Ok(CompiledKernel {
         native,

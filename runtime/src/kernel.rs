@@ -13,6 +13,7 @@
 //! `d_param{slot}` for each differentiated parameter slot.
 
 use std::fmt;
+use std::sync::Arc;
 
 use psc_compiler::ir::Program;
 use psc_jit::{CompiledKernel, JitError};
@@ -62,7 +63,8 @@ struct AdjointKernel {
 /// A forward program, its compiled kernel, and optionally its compiled adjoint.
 pub struct Kernel {
     forward: Program,
-    forward_jit: CompiledKernel,
+    /// Shared so a kernel with an adjoint can reuse an already compiled forward kernel.
+    forward_jit: Arc<CompiledKernel>,
     adjoint: Option<AdjointKernel>,
 }
 
@@ -82,7 +84,7 @@ pub struct Gradients {
 impl Kernel {
     /// Compiles a forward-only kernel.
     pub fn new(forward: Program) -> Result<Kernel, KernelError> {
-        let forward_jit = psc_jit::compile(&forward)?;
+        let forward_jit = Arc::new(psc_jit::compile(&forward)?);
         Ok(Kernel { forward, forward_jit, adjoint: None })
     }
 
@@ -93,6 +95,17 @@ impl Kernel {
         let mut k = Kernel::new(forward)?;
         k.adjoint = Some(AdjointKernel { program: adjoint, jit, wrt });
         Ok(k)
+    }
+
+    /// This kernel's forward code (shared, not recompiled) plus a compiled `adjoint`.
+    pub fn with_added_adjoint(&self, adjoint: Program) -> Result<Kernel, KernelError> {
+        let wrt = adjoint_layout(&self.forward, &adjoint)?;
+        let jit = psc_jit::compile(&adjoint)?;
+        Ok(Kernel {
+            forward: self.forward.clone(),
+            forward_jit: Arc::clone(&self.forward_jit),
+            adjoint: Some(AdjointKernel { program: adjoint, jit, wrt }),
+        })
     }
 
     pub fn forward(&self) -> &Program {

@@ -31,7 +31,7 @@ impl Material {
     /// first call, by whichever thread gets there first).
     pub fn gradient_kernel(&self) -> Result<&Kernel, KernelError> {
         self.gradient
-            .get_or_init(|| Kernel::with_adjoint(self.graph.forward.clone(), self.graph.adjoint()))
+            .get_or_init(|| self.kernel.with_added_adjoint(self.graph.adjoint()))
             .as_ref()
             .map_err(Clone::clone)
     }
@@ -99,6 +99,16 @@ impl Library {
             })
             .collect();
         Ok(Library { materials: materials?, front_end_time, jit_time: started.elapsed() })
+    }
+
+    /// Compiles every material's gradient kernel now, in parallel, instead of on first use;
+    /// returns the wall time it took.
+    pub fn compile_gradients(&self) -> Result<Duration, LibraryError> {
+        let started = Instant::now();
+        self.materials.par_iter().try_for_each(|m| {
+            m.gradient_kernel().map(drop).map_err(|error| LibraryError::Kernel { graph: m.name().to_string(), error })
+        })?;
+        Ok(started.elapsed())
     }
 
     pub fn get(&self, name: &str) -> Option<&Arc<Material>> {
