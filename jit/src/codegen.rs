@@ -18,10 +18,12 @@
 //! polynomials, rounding uses SSE4.1/NEON instructions, FMA is only used when native).
 
 use std::collections::HashMap;
+use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use cranelift_codegen::entity::packed_option::ReservedValue;
-use cranelift_codegen::ir::Type;
 use cranelift_codegen::ir::{condcodes::FloatCC, condcodes::IntCC, types, AbiParam, InstBuilder, MemFlagsData, Value};
+use cranelift_codegen::ir::{Block, Type};
 use cranelift_codegen::settings::{self, Configurable};
 use cranelift_frontend::{FunctionBuilder, FunctionBuilderContext};
 use cranelift_jit::{JITBuilder, JITModule};
@@ -30,6 +32,7 @@ use psc_compiler::ir::{Op, Program};
 
 use crate::arith::{Arith, Cmp};
 use crate::ops::{eval_op, live_nodes};
+use crate::schedule;
 use crate::{JitError, OptLevel, Options};
 
 /// A defined (not yet finalized) module holding the kernel function.
@@ -75,20 +78,22 @@ pub(crate) fn build(program: &Program, opts: &Options) -> Result<Built, JitError
     ctx.func.signature = sig;
     let groups = opts.groups.clamp(1, 4);
     let constants;
+    let body;
     let mut fctx = FunctionBuilderContext::new();
     {
         let mut b = FunctionBuilder::new(&mut ctx.func, &mut fctx);
         let mut lanes = Lanes { b: &mut b, fused, table: Value::reserved_value(), constants: ConstTable::default() };
-        define(&mut lanes, program, groups, ptr);
+        body = define(&mut lanes, program, groups, ptr);
         constants = lanes.constants.bits;
         b.seal_all_blocks();
         b.finalize(module.target_config());
     }
-    let disasm = std::env::var_os("PSC_JIT_DISASM").is_some();
-    ctx.set_disasm(disasm);
+    if let Some(max_live) = opts.schedule {
+        schedule::schedule_block(&mut ctx.func, body, max_live);
+    }
     module.define_function(func, &mut ctx).map_err(|e| cg(&e))?;
-    if disasm {
-        eprintln!("{}", ctx.compiled_code().and_then(|c| c.vcode.clone()).unwrap_or_default());
+    if let Some(dir) = std::env::var_os("PSC_JIT_DUMP") {
+        dump_machine_code(&ctx, Path::new(&dir));
     }
     module.clear_context(&mut ctx);
     Ok(Built { module, func, fused, groups, constants })
@@ -105,7 +110,20 @@ fn table_mem() -> MemFlagsData {
     MemFlagsData::new().with_notrap().with_aligned().with_readonly()
 }
 
-fn define(a: &mut Lanes, program: &Program, groups: usize, ptr: Type) {
+/// Writes the kernel's machine code to `dir/kernel-<n>.bin` (raw x86-64 or aarch64 bytes, for
+/// `objdump -D -b binary` and `llvm-mca`; see `tools/jit_mca.sh`). A development aid behind
+/// the `PSC_JIT_DUMP` environment variable; failures are reported and otherwise ignored.
+fn dump_machine_code(ctx: &cranelift_codegen::Context, dir: &Path) {
+    static DUMPED: AtomicUsize = AtomicUsize::new(0);
+    let Some(code) = ctx.compiled_code() else { return };
+    let path = dir.join(format!("kernel-{}.bin", DUMPED.fetch_add(1, Ordering::Relaxed)));
+    if let Err(e) = std::fs::write(&path, code.code_buffer()) {
+        eprintln!("PSC_JIT_DUMP: cannot write {}: {e}", path.display());
+    }
+}
+
+/// Defines the whole function; returns the loop body block.
+fn define(a: &mut Lanes, program: &Program, groups: usize, ptr: Type) -> Block {
     let b = &mut *a.b;
     let entry = b.create_block();
     b.append_block_params_for_function_params(entry);
@@ -143,6 +161,7 @@ fn define(a: &mut Lanes, program: &Program, groups: usize, ptr: Type) {
 
     b.switch_to_block(exit);
     b.ins().return_(&[]);
+    body
 }
 
 /// Emits every live node for `groups` vectors, storing outputs as soon as they are computed.

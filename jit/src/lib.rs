@@ -16,6 +16,7 @@ pub mod approx;
 pub mod arith;
 mod codegen;
 pub mod ops;
+mod schedule;
 
 use std::fmt;
 use std::time::{Duration, Instant};
@@ -70,11 +71,14 @@ pub struct Options {
     pub opt_level: OptLevel,
     /// Independent 4-lane vectors per main-loop iteration (1..=4).
     pub groups: usize,
+    /// List-schedule the loop body for instruction-level parallelism, keeping about this many
+    /// vector values live ([`schedule`]); `None` keeps the IR's order.
+    pub schedule: Option<usize>,
 }
 
 impl Default for Options {
     fn default() -> Self {
-        Options { opt_level: OptLevel::None, groups: 1 }
+        Options { opt_level: OptLevel::None, groups: 1, schedule: Some(schedule::MAX_LIVE) }
     }
 }
 

@@ -33,7 +33,8 @@ fn points(
 
 fn options(k: u8) -> Options {
     let opt_level = if k & 1 == 0 { OptLevel::Speed } else { OptLevel::None };
-    Options { opt_level, groups: [1, 2, 4][(k as usize >> 1) % 3] }
+    let schedule = [None, Some(2), Some(12)][(k as usize >> 3) % 3];
+    Options { opt_level, groups: [1, 2, 4][(k as usize >> 1) % 3], schedule }
 }
 
 fn spec() -> impl Strategy<Value = Vec<(u8, u32, u32, u32)>> {
