@@ -90,59 +90,109 @@ impl NativeKernel {
     pub(crate) fn call(
         &self,
         params: &[f32],
-        inputs: &[&[f32]],
+        u: &[f32],
+        v: &[f32],
+        seeds: &[&[f32]],
         outputs: &mut [&mut [f32]],
-        n: usize,
     ) -> Result<(), JitError> {
+        let n = u.len();
         let ok = params.len() >= self.num_params
-            && inputs.len() == self.num_inputs
+            && 2 + seeds.len() == self.num_inputs
             && outputs.len() == self.num_outputs
-            && inputs.iter().all(|c| c.len() == n)
+            && v.len() == n
+            && seeds.iter().all(|c| c.len() == n)
             && outputs.iter().all(|c| c.len() == n);
         if !ok {
             return Err(JitError::Shape("column count or length mismatch at the native boundary".into()));
         }
-        let params: Vec<Lanes> = params[..self.num_params].iter().map(|&p| Lanes::splat(p)).collect();
-        let whole = n - n % self.block;
-        if whole > 0 {
-            let in_ptrs: Vec<*const f32> = inputs.iter().map(|c| c.as_ptr()).collect();
-            let out_ptrs: Vec<*mut f32> = outputs.iter_mut().map(|c| c.as_mut_ptr()).collect();
-            // SAFETY: lengths checked above are ≥ `whole`, a multiple of `block`, as the
-            // contract in the module docs requires; the pointer arrays and the slices they
-            // point into outlive the call; outputs are distinct `&mut` borrows so they alias
-            // neither each other nor the inputs.
-            unsafe {
-                (self.entry)(params.as_ptr(), self.constants.as_ptr(), in_ptrs.as_ptr(), out_ptrs.as_ptr(), whole)
-            };
-        }
-        if whole < n {
-            self.run_tail(&params, inputs, outputs, whole, n);
-        }
+        SCRATCH.with_borrow_mut(|scratch| {
+            scratch.params.clear();
+            scratch.params.extend(params[..self.num_params].iter().map(|&p| Lanes::splat(p)));
+            let whole = n - n % self.block;
+            if whole > 0 {
+                scratch.in_ptrs.clear();
+                scratch.in_ptrs.extend([u, v].iter().chain(seeds).map(|c| c.as_ptr()));
+                scratch.out_ptrs.clear();
+                scratch.out_ptrs.extend(outputs.iter_mut().map(|c| c.as_mut_ptr()));
+                // SAFETY: lengths checked above are ≥ `whole`, a multiple of `block`, as the
+                // contract in the module docs requires; the pointer arrays and the slices they
+                // point into outlive the call; outputs are distinct `&mut` borrows so they
+                // alias neither each other nor the inputs.
+                unsafe { self.enter(scratch, whole) };
+            }
+            if whole < n {
+                self.run_tail(scratch, [u, v].iter().chain(seeds).copied(), outputs, whole, n);
+            }
+        });
         Ok(())
     }
 
     /// Runs points `start..n` (fewer than `block`) on copies padded to one block with the last
     /// point, and copies the real results back.
-    fn run_tail(&self, params: &[Lanes], inputs: &[&[f32]], outputs: &mut [&mut [f32]], start: usize, n: usize) {
+    fn run_tail<'a>(
+        &self,
+        scratch: &mut Scratch,
+        inputs: impl Iterator<Item = &'a [f32]>,
+        outputs: &mut [&mut [f32]],
+        start: usize,
+        n: usize,
+    ) {
         let block = self.block;
-        let padded_inputs: Vec<Vec<f32>> = inputs
-            .iter()
-            .map(|c| {
-                let mut p = c[start..n].to_vec();
-                p.resize(block, c[n - 1]);
-                p
-            })
-            .collect();
-        let mut padded_outputs = vec![vec![0.0f32; block]; outputs.len()];
-        let in_ptrs: Vec<*const f32> = padded_inputs.iter().map(|c| c.as_ptr()).collect();
-        let out_ptrs: Vec<*mut f32> = padded_outputs.iter_mut().map(|c| c.as_mut_ptr()).collect();
-        // SAFETY: every column is exactly `block` floats long, the pointers outlive the call,
-        // and the padded output buffers are distinct allocations.
-        unsafe { (self.entry)(params.as_ptr(), self.constants.as_ptr(), in_ptrs.as_ptr(), out_ptrs.as_ptr(), block) };
-        for (out, padded) in outputs.iter_mut().zip(&padded_outputs) {
-            out[start..n].copy_from_slice(&padded[..n - start]);
+        scratch.padded.clear();
+        for column in inputs {
+            let last = column[column.len() - 1];
+            scratch.padded.extend(column[start..n].iter().copied().chain(std::iter::repeat(last)).take(block));
+        }
+        let outputs_at = scratch.padded.len();
+        scratch.padded.resize(outputs_at + block * outputs.len(), 0.0);
+        let base = scratch.padded.as_mut_ptr();
+        scratch.in_ptrs.clear();
+        // SAFETY (both): offsets stay inside `padded`, which is not resized again below.
+        scratch.in_ptrs.extend((0..self.num_inputs).map(|k| unsafe { base.add(k * block) } as *const f32));
+        scratch.out_ptrs.clear();
+        scratch.out_ptrs.extend((0..outputs.len()).map(|k| unsafe { base.add(outputs_at + k * block) }));
+        // SAFETY: every padded column is exactly `block` floats long and lies in `padded`,
+        // input columns before output columns, no two overlapping.
+        unsafe { self.enter(scratch, block) };
+        for (k, out) in outputs.iter_mut().enumerate() {
+            let from = outputs_at + k * block;
+            out[start..n].copy_from_slice(&scratch.padded[from..from + n - start]);
         }
     }
+
+    /// Calls the native code on the pointer arrays in `scratch`.
+    ///
+    /// # Safety
+    /// `scratch.in_ptrs` and `scratch.out_ptrs` hold `num_inputs` and `num_outputs` pointers,
+    /// each valid for `n` floats (`n` a multiple of `block`); output columns overlap nothing.
+    unsafe fn enter(&self, scratch: &Scratch, n: usize) {
+        debug_assert!(scratch.in_ptrs.len() == self.num_inputs && scratch.out_ptrs.len() == self.num_outputs);
+        // SAFETY: the caller's contract, plus `params` holding `num_params` splatted lanes and
+        // `constants` the table the code was generated against.
+        unsafe {
+            (self.entry)(
+                scratch.params.as_ptr(),
+                self.constants.as_ptr(),
+                scratch.in_ptrs.as_ptr(),
+                scratch.out_ptrs.as_ptr(),
+                n,
+            )
+        }
+    }
+}
+
+/// Per-thread buffers reused by every call, so that evaluating a kernel (even at a single
+/// point, as the renderer does per hit) does not allocate.
+#[derive(Default)]
+struct Scratch {
+    params: Vec<Lanes>,
+    in_ptrs: Vec<*const f32>,
+    out_ptrs: Vec<*mut f32>,
+    padded: Vec<f32>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::default();
 }
 
 impl Drop for NativeKernel {

@@ -163,11 +163,7 @@ impl CompiledKernel {
         if let Some((o, c)) = outputs.iter().enumerate().find(|(_, c)| c.len() != n) {
             return shape(format!("output column {o} has {} points, u has {n}", c.len()));
         }
-        let mut inputs: Vec<&[f32]> = Vec::with_capacity(2 + seeds.len());
-        inputs.push(u);
-        inputs.push(v);
-        inputs.extend_from_slice(seeds);
-        self.native.call(params, &inputs, outputs, n)
+        self.native.call(params, u, v, seeds, outputs)
     }
 
     pub fn num_params(&self) -> usize {
