@@ -23,6 +23,11 @@
 
 use crate::arith::{Arith, Cmp};
 
+// Operand order in `a.fma(x, y, z)`: x86 FMA overwrites its first operand, so a multiplicand
+// that is used again later (the reduced argument, `z = r²`, the quotient `k`) goes second and
+// the one that dies here (a coefficient, the running polynomial) first; otherwise every step
+// needs a register copy. The product is exact, so the order never changes a result.
+
 const FRAC_2_PI: f32 = std::f32::consts::FRAC_2_PI;
 // pi/2 split so that k*P1 and k*P2 are exact for |k| < 2^15 even without FMA.
 const P1: f32 = 1.570_312_5;
@@ -35,9 +40,9 @@ fn reduce_half_pi<A: Arith>(a: &mut A, x: A::F) -> (A::F, A::I) {
     let t = a.mul(x, c);
     let k = a.nearest(t);
     let (m1, m2, m3) = (a.f(-P1), a.f(-P2), a.f(-P3));
-    let r = a.fma(k, m1, x);
-    let r = a.fma(k, m2, r);
-    let r = a.fma(k, m3, r);
+    let r = a.fma(m1, k, x);
+    let r = a.fma(m2, k, r);
+    let r = a.fma(m3, k, r);
     // Past |x| ~ 1e6 the float quotient k is too coarse and r is no longer small; clamping
     // keeps the polynomials bounded (the result is then merely in [-1, 1], not accurate).
     // Spelled so NaN passes through (and so cranelift lowers each to one minps/maxps).
@@ -53,8 +58,8 @@ fn reduce_half_pi<A: Arith>(a: &mut A, x: A::F) -> (A::F, A::I) {
 /// sin(r) on the reduced range.
 fn sin_poly<A: Arith>(a: &mut A, r: A::F, z: A::F) -> A::F {
     let (s3, s2, s1) = (a.f(-1.951_529_589_1e-4), a.f(8.332_160_873_6e-3), a.f(-1.666_665_461_1e-1));
-    let p = a.fma(z, s3, s2);
-    let p = a.fma(z, p, s1);
+    let p = a.fma(s3, z, s2);
+    let p = a.fma(p, z, s1);
     let rz = a.mul(r, z);
     a.fma(rz, p, r)
 }
@@ -62,11 +67,11 @@ fn sin_poly<A: Arith>(a: &mut A, r: A::F, z: A::F) -> A::F {
 /// cos(r) on the reduced range.
 fn cos_poly<A: Arith>(a: &mut A, z: A::F) -> A::F {
     let (c3, c2, c1) = (a.f(2.443_315_711_809_948e-5), a.f(-1.388_731_625_493_765e-3), a.f(4.166_664_568_298_827e-2));
-    let p = a.fma(z, c3, c2);
-    let p = a.fma(z, p, c1);
+    let p = a.fma(c3, z, c2);
+    let p = a.fma(p, z, c1);
     let zz = a.mul(z, z);
     let (mhalf, one) = (a.f(-0.5), a.f(1.0));
-    let head = a.fma(z, mhalf, one);
+    let head = a.fma(mhalf, z, one);
     a.fma(zz, p, head)
 }
 
@@ -118,8 +123,8 @@ pub fn exp<A: Arith>(a: &mut A, x: A::F) -> A::F {
     let t = a.mul(x, log2e);
     let k = a.nearest(t);
     let (l1, l2) = (a.f(-0.693_359_375), a.f(2.121_944_4e-4));
-    let r = a.fma(k, l1, x);
-    let r = a.fma(k, l2, r);
+    let r = a.fma(l1, k, x);
+    let r = a.fma(l2, k, r);
     let coeffs = [
         1.987_569_15e-4,
         1.398_199_950_7e-3,
@@ -210,12 +215,12 @@ pub fn log_positive<A: Arith>(a: &mut A, x: A::F) -> A::F {
     let fz = a.mul(f, z);
     let y = a.mul(p, fz);
     let ln2_lo = a.f(-2.121_944_4e-4);
-    let y = a.fma(e, ln2_lo, y);
+    let y = a.fma(ln2_lo, e, y);
     let neg_half = a.f(-0.5);
-    let y = a.fma(z, neg_half, y);
+    let y = a.fma(neg_half, z, y);
     let r = a.add(f, y);
     let ln2_hi = a.f(0.693_359_375);
-    let r = a.fma(e, ln2_hi, r);
+    let r = a.fma(ln2_hi, e, r);
     let inf = a.f(f32::INFINITY);
     let is_inf = a.cmp(Cmp::Eq, x, inf);
     a.sel(is_inf, inf, r)
