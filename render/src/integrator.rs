@@ -262,6 +262,7 @@ impl Renderer {
             if wo_l.z <= 0.0 {
                 return;
             }
+            let brdf = brdf.at(wo_l);
             let origin = self.geometry.offset(hit.p, sf.ng);
 
             // Next-event estimation.
@@ -282,7 +283,7 @@ impl Renderer {
                                 st.rays += 1;
                                 if !self.geometry.occluded(origin, wi, dist * (1.0 - 1e-4) - self.geometry.eps) {
                                     let pdf_l = p_sel * lp.pdf_area * dist2 / cos_l;
-                                    let (f, pdf_b) = brdf.eval_pdf(wo_l, wi_l);
+                                    let (f, pdf_b) = brdf.eval_pdf(wi_l);
                                     let w = power_heuristic(pdf_l, pdf_b);
                                     st.out[slot] += beta * f * (wi_l.z * w / pdf_l);
                                 }
@@ -296,7 +297,7 @@ impl Renderer {
                             st.rays += 1;
                             if !self.geometry.occluded(origin, wi, f32::INFINITY) {
                                 let pdf_l = p_sel * pdf;
-                                let (f, pdf_b) = brdf.eval_pdf(wo_l, wi_l);
+                                let (f, pdf_b) = brdf.eval_pdf(wi_l);
                                 let w = power_heuristic(pdf_l, pdf_b);
                                 st.out[slot] += beta * f * le * (wi_l.z * w / pdf_l);
                             }
@@ -308,7 +309,7 @@ impl Renderer {
             // Continue the path.
             let u_lobe = st.rng.next_f32();
             let u = st.rng.next_2d();
-            let Some(bs) = brdf.sample(wo_l, u_lobe, u) else { return };
+            let Some(bs) = brdf.sample(u_lobe, u) else { return };
             let wi = sf.frame.to_world(bs.wi);
             if wi.dot(sf.ng) <= 0.0 {
                 return;
