@@ -252,20 +252,15 @@ impl Renderer {
             }
             let wo = -d;
             let binding = &self.materials[hit.part as usize];
-            let s = binding.eval(hit.uv);
-            let sf = self.geometry.shading_frame(&hit, wo, s.normal);
-            let mut brdf = Karis::new(Vec3::from(s.albedo), s.roughness);
-            if cfg.diffuse_only {
-                brdf = brdf.diffuse_only();
-            }
-            let wo_l = sf.frame.to_local(wo);
-            if wo_l.z <= 0.0 {
-                return;
-            }
-            let brdf = brdf.at(wo_l);
-            let origin = self.geometry.offset(hit.p, sf.ng);
+            // The material's texels load while the shadow ray is traced: NEE is sampled and its
+            // visibility tested before shading, with only the geometric tests; the shading-frame
+            // test and the contribution wait for the BRDF (same random numbers, same estimate).
+            binding.prefetch(hit.uv);
+            let ng = if hit.ng.dot(wo) >= 0.0 { hit.ng } else { -hit.ng };
+            let origin = self.geometry.offset(hit.p, ng);
 
-            // Next-event estimation.
+            // Next-event estimation: (slot, wi, radiance, light pdf) of an unoccluded sample.
+            let mut nee: Option<(usize, Vec3, Vec3, f32)> = None;
             if sel.total > 0.0 {
                 let (slot, u_tri) = sel.sample(st.rng.next_f32());
                 let p_sel = sel.pmf(slot);
@@ -277,32 +272,42 @@ impl Renderer {
                         let dist = dist2.sqrt();
                         let wi = to / dist;
                         let cos_l = -lp.n.dot(wi);
-                        if cos_l > 0.0 && wi.dot(sf.ng) > 0.0 {
-                            let wi_l = sf.frame.to_local(wi);
-                            if wi_l.z > 0.0 {
-                                st.rays += 1;
-                                if !self.geometry.occluded(origin, wi, dist * (1.0 - 1e-4) - self.geometry.eps) {
-                                    let pdf_l = p_sel * lp.pdf_area * dist2 / cos_l;
-                                    let (f, pdf_b) = brdf.eval_pdf(wi_l);
-                                    let w = power_heuristic(pdf_l, pdf_b);
-                                    st.out[slot] += beta * f * (wi_l.z * w / pdf_l);
-                                }
+                        if cos_l > 0.0 && wi.dot(ng) > 0.0 {
+                            st.rays += 1;
+                            if !self.geometry.occluded(origin, wi, dist * (1.0 - 1e-4) - self.geometry.eps) {
+                                nee = Some((slot, wi, Vec3::ONE, p_sel * lp.pdf_area * dist2 / cos_l));
                             }
                         }
                     }
                 } else if let Some(env) = &self.env {
                     if let Some((wi, le, pdf)) = env.sample(u) {
-                        let wi_l = sf.frame.to_local(wi);
-                        if wi_l.z > 0.0 && wi.dot(sf.ng) > 0.0 && pdf > 0.0 {
+                        if wi.dot(ng) > 0.0 && pdf > 0.0 {
                             st.rays += 1;
                             if !self.geometry.occluded(origin, wi, f32::INFINITY) {
-                                let pdf_l = p_sel * pdf;
-                                let (f, pdf_b) = brdf.eval_pdf(wi_l);
-                                let w = power_heuristic(pdf_l, pdf_b);
-                                st.out[slot] += beta * f * le * (wi_l.z * w / pdf_l);
+                                nee = Some((slot, wi, le, p_sel * pdf));
                             }
                         }
                     }
+                }
+            }
+
+            let s = binding.eval(hit.uv);
+            let sf = self.geometry.shading_frame(&hit, wo, s.normal);
+            let mut brdf = Karis::new(Vec3::from(s.albedo), s.roughness);
+            if cfg.diffuse_only {
+                brdf = brdf.diffuse_only();
+            }
+            let wo_l = sf.frame.to_local(wo);
+            if wo_l.z <= 0.0 {
+                return;
+            }
+            let brdf = brdf.at(wo_l);
+            if let Some((slot, wi, le, pdf_l)) = nee {
+                let wi_l = sf.frame.to_local(wi);
+                if wi_l.z > 0.0 {
+                    let (f, pdf_b) = brdf.eval_pdf(wi_l);
+                    let w = power_heuristic(pdf_l, pdf_b);
+                    st.out[slot] += beta * f * le * (wi_l.z * w / pdf_l);
                 }
             }
 
@@ -311,7 +316,7 @@ impl Renderer {
             let u = st.rng.next_2d();
             let Some(bs) = brdf.sample(u_lobe, u) else { return };
             let wi = sf.frame.to_world(bs.wi);
-            if wi.dot(sf.ng) <= 0.0 {
+            if wi.dot(ng) <= 0.0 {
                 return;
             }
             beta *= bs.weight;

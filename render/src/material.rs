@@ -42,6 +42,10 @@ pub trait SurfaceMaterial: Send + Sync {
             *o = self.eval(*uv);
         }
     }
+
+    /// A hint that [`SurfaceMaterial::eval`] at `uv` follows soon: start loading what it reads
+    /// (texels) so the path tracer can trace a shadow ray meanwhile. No effect on results.
+    fn prefetch(&self, _uv: [f32; 2]) {}
 }
 
 /// The same sample everywhere.
@@ -138,9 +142,10 @@ impl Texture {
         }
     }
 
-    /// Bilinear lookup at OBJ-convention (u, v), repeat wrap.
+    /// The four texels of a bilinear lookup (x0, x1, y0, y1) and the weights (fx, fy); `None`
+    /// for a non-finite uv.
     #[inline]
-    pub fn sample(&self, uv: [f32; 2]) -> [f32; 3] {
+    fn footprint(&self, uv: [f32; 2]) -> Option<([usize; 4], f32, f32)> {
         let (w, h) = (self.width as f32, self.height as f32);
         let u = uv[0] - uv[0].floor();
         let v = uv[1] - uv[1].floor();
@@ -148,7 +153,7 @@ impl Texture {
         let x = u * w - 0.5;
         let y = (1.0 - v) * h - 0.5;
         if !(x.is_finite() && y.is_finite()) {
-            return self.texel(0, 0);
+            return None;
         }
         let (x0f, y0f) = ((x + 1.0) as i32 - 1, (y + 1.0) as i32 - 1); // floor for x >= -1
         let (fx, fy) = (x - x0f as f32, y - y0f as f32);
@@ -163,6 +168,13 @@ impl Texture {
         };
         let (x0, x1) = (wrap(x0f, self.width), wrap(x0f + 1, self.width));
         let (y0, y1) = (wrap(y0f, self.height), wrap(y0f + 1, self.height));
+        Some(([x0, x1, y0, y1], fx, fy))
+    }
+
+    /// Bilinear lookup at OBJ-convention (u, v), repeat wrap.
+    #[inline]
+    pub fn sample(&self, uv: [f32; 2]) -> [f32; 3] {
+        let Some(([x0, x1, y0, y1], fx, fy)) = self.footprint(uv) else { return self.texel(0, 0) };
         let (a, b, c, d) = (self.texel(x0, y0), self.texel(x1, y0), self.texel(x0, y1), self.texel(x1, y1));
         let mut out = [0.0; 3];
         for k in 0..3 {
@@ -172,6 +184,30 @@ impl Texture {
         }
         out
     }
+
+    /// Start loading the texels [`Texture::sample`] at `uv` reads (a cache hint only).
+    #[inline]
+    pub fn prefetch(&self, uv: [f32; 2]) {
+        let Some(([x0, x1, y0, y1], _, _)) = self.footprint(uv) else { return };
+        for (x, y) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1)] {
+            let i = y * self.width + x;
+            match &self.texels {
+                Texels::Linear(d) => prefetch(&d[i]),
+                Texels::Srgb8(d) => prefetch(&d[i]),
+            }
+        }
+    }
+}
+
+#[inline(always)]
+fn prefetch<T>(p: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch never faults and has no effect on memory contents.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p as *const T as *const i8)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
 }
 
 /// Roughness of an [`ImageMaterial`]: a constant or the first channel of a texture.
@@ -215,6 +251,16 @@ impl SurfaceMaterial for ImageMaterial {
         };
         SurfaceSample { albedo: self.albedo.sample(uv), roughness, normal }
     }
+
+    fn prefetch(&self, uv: [f32; 2]) {
+        self.albedo.prefetch(uv);
+        if let RoughnessSource::Texture(t) = &self.roughness {
+            t.prefetch(uv);
+        }
+        if let Some(t) = &self.normal_map {
+            t.prefetch(uv);
+        }
+    }
 }
 
 /// A material attached to one part.
@@ -257,6 +303,12 @@ impl MaterialBinding {
     pub fn transform_uv(&self, uv: [f32; 2]) -> [f32; 2] {
         let m = &self.uv_transform;
         [m[0][0] * uv[0] + m[0][1] * uv[1] + m[0][2], m[1][0] * uv[0] + m[1][1] * uv[1] + m[1][2]]
+    }
+
+    /// See [`SurfaceMaterial::prefetch`] (at the mesh uv).
+    #[inline]
+    pub fn prefetch(&self, uv: [f32; 2]) {
+        self.material.prefetch(self.transform_uv(uv));
     }
 
     /// Evaluate at the mesh uv: transform, evaluate, scale, clamp to the valid range.
