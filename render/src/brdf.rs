@@ -231,7 +231,7 @@ impl KarisWo {
     }
 
     /// See [`Karis::sample`].
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, u_lobe: f32, u: [f32; 2]) -> Option<BrdfSample> {
         let wo = self.wo;
         if wo.z <= 0.0 {

@@ -124,7 +124,7 @@ impl SceneGeometry {
     }
 
     /// Closest hit along a unit direction.
-    #[inline]
+    #[inline(always)]
     pub fn trace(&self, o: Vec3, d: Vec3, tmax: f32) -> Traced {
         let Some(h) = self.bvh.intersect(o, d, tmax) else { return Traced::Miss };
         if h.prim >= self.n_surface {
@@ -163,6 +163,7 @@ impl SceneGeometry {
     /// Shading frame at `hit` seen from `wo` (unit, away from the surface), with a tangent-space
     /// normal `tn` from the material (`[0, 0, 1]` = unperturbed). Surfaces are two-sided: the
     /// frame is built on the side `wo` is on. A perturbed normal that would hide `wo` is ignored.
+    #[inline(always)]
     pub fn shading_frame(&self, hit: &SurfaceHit, wo: Vec3, tn: [f32; 3]) -> ShadingFrame {
         let ng = if hit.ng.dot(wo) >= 0.0 { hit.ng } else { -hit.ng };
         let (n, t, b) = if self.normals.is_empty() && hit.prim < self.n_surface {
