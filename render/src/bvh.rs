@@ -1,6 +1,7 @@
 //! Ray casting: every triangle of the scene (model and emitters) in one 4-wide BVH with
 //! uncompressed float bounds, traversed with one 4-lane slab test per node (glam `Vec4`: SSE2 on
-//! x86-64), and a Möller–Trumbore test on precomputed edges stored in leaf order.
+//! x86-64), and leaves of up to four triangles tested at once (Möller–Trumbore on precomputed
+//! edges, four lanes).
 //!
 //! The tree comes from obvhs: a binary BVH (PLOC, spatial pre-splits, reinsertion, SAH leaf
 //! collapse; `BvhBuildParams::very_slow_build` with at most [`MAX_LEAF`] triangles a leaf), which
@@ -11,7 +12,7 @@
 use std::mem::MaybeUninit;
 use std::time::Duration;
 
-use glam::{BVec4A, Vec3, Vec3A, Vec4};
+use glam::{BVec4A, Vec3, Vec4};
 use obvhs::bvh2::builder::build_bvh2_from_tris;
 use obvhs::bvh2::Bvh2;
 use obvhs::triangle::Triangle;
@@ -20,12 +21,14 @@ use obvhs::BvhBuildParams;
 /// Most triangles in one leaf.
 pub const MAX_LEAF: u32 = 4;
 
+/// One leaf: up to four triangles, lane i = triangle i (unused lanes are degenerate).
 #[derive(Clone, Copy)]
-struct TriAccel {
-    p0: Vec3A,
-    e1: Vec3A,
-    e2: Vec3A,
-    prim: u32,
+#[repr(C, align(16))]
+struct TriPack {
+    p0: [Vec4; 3],
+    e1: [Vec4; 3],
+    e2: [Vec4; 3],
+    prim: [u32; 4],
 }
 
 /// The closest hit of a ray.
@@ -39,7 +42,7 @@ pub struct Hit {
     pub b2: f32,
 }
 
-/// Child reference: an inner node index, or (with [`LEAF`]) `first_triangle << 5 | count`.
+/// Child reference: an inner node index, or (with [`LEAF`]) a leaf's [`TriPack`] index.
 const LEAF: u32 = 1 << 31;
 /// An empty child slot (its bounds are inverted, so it is never entered).
 const EMPTY: u32 = u32::MAX;
@@ -55,30 +58,34 @@ struct Node4 {
 /// A BVH over triangles.
 pub struct Bvh {
     nodes: Vec<Node4>,
-    tris: Vec<TriAccel>,
+    packs: Vec<TriPack>,
     depth: usize,
 }
 
+/// Möller–Trumbore against the four triangles of a pack: (t, u, v) per lane and the lanes hit
+/// with `0 < t < tmax`.
 #[inline(always)]
-fn intersect(tri: &TriAccel, o: Vec3A, d: Vec3A, tmax: f32) -> Option<(f32, f32, f32)> {
-    let pvec = d.cross(tri.e2);
-    let det = tri.e1.dot(pvec);
-    if det.abs() < 1e-14 {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let tvec = o - tri.p0;
-    let u = tvec.dot(pvec) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return None;
-    }
-    let qvec = tvec.cross(tri.e1);
-    let v = d.dot(qvec) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return None;
-    }
-    let t = tri.e2.dot(qvec) * inv;
-    (t > 0.0 && t < tmax).then_some((t, u, v))
+fn intersect4(pk: &TriPack, o: &[Vec4; 3], d: &[Vec4; 3], tmax: f32) -> (Vec4, Vec4, Vec4, u32) {
+    let cross = |a: &[Vec4; 3], b: &[Vec4; 3]| {
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    };
+    let dot = |a: &[Vec4; 3], b: &[Vec4; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let pvec = cross(d, &pk.e2);
+    let det = dot(&pk.e1, &pvec);
+    let inv = Vec4::ONE / det;
+    let tvec = [o[0] - pk.p0[0], o[1] - pk.p0[1], o[2] - pk.p0[2]];
+    let u = dot(&tvec, &pvec) * inv;
+    let qvec = cross(&tvec, &pk.e1);
+    let v = dot(d, &qvec) * inv;
+    let t = dot(&pk.e2, &qvec) * inv;
+    let ok = det.abs().cmpge(Vec4::splat(1e-14))
+        & u.cmpge(Vec4::ZERO)
+        & u.cmple(Vec4::ONE)
+        & v.cmpge(Vec4::ZERO)
+        & (u + v).cmple(Vec4::ONE)
+        & t.cmpgt(Vec4::ZERO)
+        & t.cmplt(Vec4::splat(tmax));
+    (t, u, v, ok.bitmask())
 }
 
 /// 1/x, kept finite for (near) zero components like obvhs' `safe_inverse`.
@@ -99,11 +106,12 @@ struct RayPre {
     /// Index into `Node4::bounds` of the near and far plane per axis (by the direction's sign).
     near: [usize; 3],
     far: [usize; 3],
+    dir: [Vec4; 3],
 }
 
 impl RayPre {
     #[inline(always)]
-    fn new(o: Vec3A, d: Vec3A) -> Self {
+    fn new(o: Vec3, d: Vec3) -> Self {
         let inv = [safe_inverse(d.x), safe_inverse(d.y), safe_inverse(d.z)];
         let o = [o.x, o.y, o.z];
         let near = [0, 1, 2].map(|k| if inv[k] < 0.0 { k + 3 } else { k });
@@ -112,6 +120,7 @@ impl RayPre {
             inv: inv.map(Vec4::splat),
             near,
             far: [0, 1, 2].map(|k| if near[k] >= 3 { k } else { k + 3 }),
+            dir: [d.x, d.y, d.z].map(Vec4::splat),
         }
     }
 
@@ -140,30 +149,26 @@ impl Bvh {
             .collect();
         let mut params = BvhBuildParams::very_slow_build();
         params.max_prims_per_leaf = MAX_LEAF;
-        let accel = |i: u32| {
-            let t = &triangles[i as usize];
-            TriAccel { p0: t[0].into(), e1: (t[1] - t[0]).into(), e2: (t[2] - t[0]).into(), prim: i }
-        };
         if tris.is_empty() {
-            return Bvh { nodes: Vec::new(), tris: Vec::new(), depth: 0 };
+            return Bvh { nodes: Vec::new(), packs: Vec::new(), depth: 0 };
         }
         let bvh2 = build_bvh2_from_tris(&tris, params, &mut Duration::default());
-        let mut out = Bvh { nodes: Vec::new(), tris: Vec::new(), depth: 0 };
+        let mut out = Bvh { nodes: Vec::new(), packs: Vec::new(), depth: 0 };
         let root = &bvh2.nodes[0];
         if root.is_leaf() {
             // A single leaf: one node with one child.
             let mut node = empty_node();
-            set_child(&mut node, 0, &bvh2, 0, &mut out.tris, &accel);
+            set_child(&mut node, 0, &bvh2, 0, &mut out.packs, triangles);
             out.nodes.push(node);
         } else {
-            out.collapse(&bvh2, 0, 1, &accel);
+            out.collapse(&bvh2, 0, 1, triangles);
         }
         assert!(3 * out.depth + 1 <= STACK, "BVH of depth {} is too deep to traverse", out.depth);
         out
     }
 
     /// Append the 4-wide node for binary inner node `n` (and, recursively, its subtree).
-    fn collapse(&mut self, bvh2: &Bvh2, n: usize, depth: usize, accel: &impl Fn(u32) -> TriAccel) -> u32 {
+    fn collapse(&mut self, bvh2: &Bvh2, n: usize, depth: usize, triangles: &[[Vec3; 3]]) -> u32 {
         self.depth = self.depth.max(depth);
         let first = bvh2.nodes[n].first_index as usize;
         let mut kids = vec![first, first + 1];
@@ -188,10 +193,10 @@ impl Bvh {
         let mut node = empty_node();
         for (slot, &k) in kids.iter().enumerate() {
             if bvh2.nodes[k].is_leaf() {
-                set_child(&mut node, slot, bvh2, k, &mut self.tris, accel);
+                set_child(&mut node, slot, bvh2, k, &mut self.packs, triangles);
             } else {
                 set_bounds(&mut node, slot, bvh2, k);
-                node.child[slot] = self.collapse(bvh2, k, depth + 1, accel);
+                node.child[slot] = self.collapse(bvh2, k, depth + 1, triangles);
             }
         }
         self.nodes[index] = node;
@@ -203,7 +208,6 @@ impl Bvh {
         if self.nodes.is_empty() {
             return None;
         }
-        let (o, d) = (Vec3A::from(o), Vec3A::from(d));
         let pre = RayPre::new(o, d);
         let mut tmax = tmax;
         let mut best: Option<(u32, f32, f32)> = None;
@@ -218,11 +222,14 @@ impl Bvh {
                 continue;
             }
             if child & LEAF != 0 {
-                let (start, count) = (((child & !LEAF) >> 5) as usize, (child & 31) as usize);
-                for (i, tri) in self.tris[start..start + count].iter().enumerate() {
-                    if let Some((t, u, v)) = intersect(tri, o, d, tmax) {
-                        tmax = t;
-                        best = Some(((start + i) as u32, u, v));
+                let pk = &self.packs[(child & !LEAF) as usize];
+                let (t, u, v, mut mask) = intersect4(pk, &pre.org, &pre.dir, tmax);
+                while mask != 0 {
+                    let i = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    if t[i] < tmax {
+                        tmax = t[i];
+                        best = Some((pk.prim[i], u[i], v[i]));
                     }
                 }
                 continue;
@@ -253,7 +260,7 @@ impl Bvh {
                 sp += 1;
             }
         }
-        best.map(|(i, b1, b2)| Hit { t: tmax, prim: self.tris[i as usize].prim, b1, b2 })
+        best.map(|(prim, b1, b2)| Hit { t: tmax, prim, b1, b2 })
     }
 
     /// Whether anything lies on the segment `0 < t < tmax`.
@@ -261,7 +268,6 @@ impl Bvh {
         if self.nodes.is_empty() {
             return false;
         }
-        let (o, d) = (Vec3A::from(o), Vec3A::from(d));
         let pre = RayPre::new(o, d);
         let mut stack = [MaybeUninit::<u32>::uninit(); STACK];
         stack[0].write(0);
@@ -271,8 +277,7 @@ impl Bvh {
             // SAFETY: entries below `sp` were written.
             let child = unsafe { stack[sp].assume_init() };
             if child & LEAF != 0 {
-                let (start, count) = (((child & !LEAF) >> 5) as usize, (child & 31) as usize);
-                if self.tris[start..start + count].iter().any(|tri| intersect(tri, o, d, tmax).is_some()) {
+                if intersect4(&self.packs[(child & !LEAF) as usize], &pre.org, &pre.dir, tmax).3 != 0 {
                     return true;
                 }
                 continue;
@@ -303,21 +308,24 @@ fn set_bounds(node: &mut Node4, slot: usize, bvh2: &Bvh2, k: usize) {
     }
 }
 
-/// Make `slot` the leaf of binary node `k`, appending its triangles to `tris`.
-fn set_child(
-    node: &mut Node4,
-    slot: usize,
-    bvh2: &Bvh2,
-    k: usize,
-    tris: &mut Vec<TriAccel>,
-    accel: &impl Fn(u32) -> TriAccel,
-) {
+/// Make `slot` the leaf of binary node `k`, appending its triangles to `packs`.
+fn set_child(node: &mut Node4, slot: usize, bvh2: &Bvh2, k: usize, packs: &mut Vec<TriPack>, triangles: &[[Vec3; 3]]) {
     set_bounds(node, slot, bvh2, k);
     let leaf = &bvh2.nodes[k];
     let (first, count) = (leaf.first_index as usize, leaf.prim_count as usize);
-    assert!((1..32).contains(&count), "BVH leaf of {count} triangles");
-    let start = tris.len();
-    assert!(start < 1 << 26, "too many triangles for the BVH's leaf encoding");
-    tris.extend(bvh2.primitive_indices[first..first + count].iter().map(|&i| accel(i)));
-    node.child[slot] = LEAF | (start as u32) << 5 | count as u32;
+    assert!((1..=MAX_LEAF as usize).contains(&count), "BVH leaf of {count} triangles");
+    let mut pk = TriPack { p0: [Vec4::ZERO; 3], e1: [Vec4::ZERO; 3], e2: [Vec4::ZERO; 3], prim: [u32::MAX; 4] };
+    for (lane, &i) in bvh2.primitive_indices[first..first + count].iter().enumerate() {
+        let t = &triangles[i as usize];
+        let (e1, e2) = (t[1] - t[0], t[2] - t[0]);
+        for axis in 0..3 {
+            pk.p0[axis][lane] = t[0][axis];
+            pk.e1[axis][lane] = e1[axis];
+            pk.e2[axis][lane] = e2[axis];
+        }
+        pk.prim[lane] = i;
+    }
+    assert!(packs.len() < LEAF as usize, "too many BVH leaves");
+    node.child[slot] = LEAF | packs.len() as u32;
+    packs.push(pk);
 }
