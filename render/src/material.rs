@@ -147,8 +147,8 @@ impl Texture {
     #[inline]
     fn footprint(&self, uv: [f32; 2]) -> Option<([usize; 4], f32, f32)> {
         let (w, h) = (self.width as f32, self.height as f32);
-        let u = uv[0] - uv[0].floor();
-        let v = uv[1] - uv[1].floor();
+        let u = uv[0] - floor(uv[0]);
+        let v = uv[1] - floor(uv[1]);
         // x in [-0.5, w - 0.5), y in [-0.5, h - 0.5]
         let x = u * w - 0.5;
         let y = (1.0 - v) * h - 0.5;
@@ -188,14 +188,30 @@ impl Texture {
     /// Start loading the texels [`Texture::sample`] at `uv` reads (a cache hint only).
     #[inline]
     pub fn prefetch(&self, uv: [f32; 2]) {
-        let Some(([x0, x1, y0, y1], _, _)) = self.footprint(uv) else { return };
-        for (x, y) in [(x0, y0), (x1, y0), (x0, y1), (x1, y1)] {
+        let Some(([x0, _, y0, y1], _, _)) = self.footprint(uv) else { return };
+        // x0 and x1 share a cache line but for one texel in 16 (8-bit) or 5 (float).
+        for (x, y) in [(x0, y0), (x0, y1)] {
             let i = y * self.width + x;
             match &self.texels {
                 Texels::Linear(d) => prefetch(&d[i]),
                 Texels::Srgb8(d) => prefetch(&d[i]),
             }
         }
+    }
+}
+
+/// `x.floor()` without a libm call on x86-64's baseline (no SSE4.1 `roundss`); the same value.
+#[inline(always)]
+fn floor(x: f32) -> f32 {
+    if x.abs() < 8_388_608.0 {
+        let t = x as i32 as f32; // truncation, exact below 2^23
+        if t > x {
+            t - 1.0
+        } else {
+            t
+        }
+    } else {
+        x.floor()
     }
 }
 
