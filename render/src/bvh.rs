@@ -204,6 +204,7 @@ impl Bvh {
     }
 
     /// Closest hit with `0 < t < tmax`; `d` must be unit length for `t` to be a distance.
+    #[inline(always)]
     pub fn intersect(&self, o: Vec3, d: Vec3, tmax: f32) -> Option<Hit> {
         if self.nodes.is_empty() {
             return None;
@@ -264,6 +265,7 @@ impl Bvh {
     }
 
     /// Whether anything lies on the segment `0 < t < tmax`.
+    #[inline(always)]
     pub fn occluded(&self, o: Vec3, d: Vec3, tmax: f32) -> bool {
         if self.nodes.is_empty() {
             return false;

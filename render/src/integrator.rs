@@ -211,7 +211,14 @@ impl Renderer {
     /// Radiance arriving at `o` from direction `-d` (d unit, leaving `o`), accumulated per slot
     /// into `st.out` at unit emission. `prev_pdf` is the solid-angle pdf with which `d` was
     /// sampled (0 = not sampled by a BRDF: camera rays, light-grid rays; no MIS on emitter hits).
-    pub fn li(&self, mut o: Vec3, mut d: Vec3, cfg: &PathConfig, st: &mut PathState) {
+    pub fn li(&self, o: Vec3, d: Vec3, cfg: &PathConfig, st: &mut PathState) {
+        self.li_inline(o, d, cfg, st)
+    }
+
+    /// [`Renderer::li`], inlined into the render loop (so that it is compiled for the CPU
+    /// features the loop is compiled for).
+    #[inline(always)]
+    fn li_inline(&self, mut o: Vec3, mut d: Vec3, cfg: &PathConfig, st: &mut PathState) {
         let sel = self.selection(cfg.per_light);
         let n_lights = self.lights.len();
         let mut beta = Vec3::ONE;
@@ -351,24 +358,7 @@ impl Renderer {
         let cfg = opts.path_config();
         let body = |slots: &mut Vec<Vec3>| {
             slots.par_chunks_mut(w * ns).enumerate().for_each(|(y, row)| {
-                let mut acc = vec![Vec3::ZERO; ns];
-                let mut row_rays = 0u64;
-                for x in 0..w {
-                    let pixel = (y * w + x) as u64;
-                    acc.iter_mut().for_each(|a| *a = Vec3::ZERO);
-                    for s in 0..opts.spp {
-                        let mut st = PathState { rng: Rng::new(opts.seed, pixel, s as u64), rays: 0, out: &mut acc };
-                        let j = st.rng.next_2d();
-                        let d = cam.direction(x as f32 + j[0], y as f32 + j[1]);
-                        self.li(cam.position, d, &cfg, &mut st);
-                        row_rays += st.rays;
-                    }
-                    let inv = 1.0 / opts.spp as f32;
-                    for k in 0..ns {
-                        row[x * ns + k] = acc[k] * inv;
-                    }
-                }
-                rays.fetch_add(row_rays, Ordering::Relaxed);
+                rays.fetch_add(self.render_row(&cam, opts, &cfg, y, row), Ordering::Relaxed);
                 bar.inc(1);
             });
         };
@@ -394,6 +384,47 @@ impl Renderer {
             rays: rays.into_inner(),
             seconds: start.elapsed().as_secs_f64(),
         })
+    }
+
+    /// Row `y` of the slot images (`row`: width × slots); returns the rays cast. Dispatches to a
+    /// copy compiled for AVX2 where the CPU has it (VEX encoding, SSE4.1 rounding and blends;
+    /// no FMA contraction, so the results are bit-identical to the baseline copy).
+    fn render_row(&self, cam: &Camera, opts: &RenderOptions, cfg: &PathConfig, y: usize, row: &mut [Vec3]) -> u64 {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports the features the function is compiled for.
+            return unsafe { self.render_row_avx2(cam, opts, cfg, y, row) };
+        }
+        self.render_row_impl(cam, opts, cfg, y, row)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn render_row_avx2(&self, cam: &Camera, opts: &RenderOptions, cfg: &PathConfig, y: usize, row: &mut [Vec3]) -> u64 {
+        self.render_row_impl(cam, opts, cfg, y, row)
+    }
+
+    #[inline(always)]
+    fn render_row_impl(&self, cam: &Camera, opts: &RenderOptions, cfg: &PathConfig, y: usize, row: &mut [Vec3]) -> u64 {
+        let (w, ns) = (opts.width, self.n_slots());
+        let mut acc = vec![Vec3::ZERO; ns];
+        let mut row_rays = 0u64;
+        for x in 0..w {
+            let pixel = (y * w + x) as u64;
+            acc.iter_mut().for_each(|a| *a = Vec3::ZERO);
+            for s in 0..opts.spp {
+                let mut st = PathState { rng: Rng::new(opts.seed, pixel, s as u64), rays: 0, out: &mut acc };
+                let j = st.rng.next_2d();
+                let d = cam.direction(x as f32 + j[0], y as f32 + j[1]);
+                self.li_inline(cam.position, d, cfg, &mut st);
+                row_rays += st.rays;
+            }
+            let inv = 1.0 / opts.spp as f32;
+            for k in 0..ns {
+                row[x * ns + k] = acc[k] * inv;
+            }
+        }
+        row_rays
     }
 
     /// Cast `passes` jittered camera rays per pixel (closest hit only); returns (rays, seconds).
