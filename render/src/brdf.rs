@@ -163,48 +163,97 @@ impl Karis {
     /// `(f(wo, wi), pdf(wo, wi))` sharing the half-vector terms (what NEE and sampling need).
     #[inline]
     pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (Vec3, f32) {
-        if wo.z <= 0.0 || wi.z <= 0.0 {
-            return (Vec3::ZERO, 0.0);
-        }
-        let diffuse = self.albedo * (1.0 / PI);
-        let ps = self.specular_probability(wo);
-        if ps == 0.0 {
-            return (diffuse, wi.z / PI);
-        }
-        let h = (wo + wi).normalize();
-        let v_h = wo.dot(h).max(0.0);
-        let d = ggx_d(h.z, self.roughness);
-        let g = g1(wo.z, self.roughness) * g1(wi.z, self.roughness);
-        let spec = self.specular_weight * d * fresnel(v_h) * g / (4.0 * wo.z * wi.z);
-        let pdf = ps * d * h.z / (4.0 * v_h.max(1e-8)) + (1.0 - ps) * wi.z / PI;
-        (diffuse + Vec3::splat(spec), pdf)
+        self.at(wo).eval_pdf(wi)
     }
 
     /// Sample `wi` for `wo`; `u_lobe` picks the lobe, `u` the direction. `None` when the sampled
     /// direction falls below the surface (that probability mass is simply lost).
     pub fn sample(&self, wo: Vec3, u_lobe: f32, u: [f32; 2]) -> Option<BrdfSample> {
+        self.at(wo).sample(u_lobe, u)
+    }
+
+    /// The BRDF for one outgoing direction, with the terms that depend on `wo` alone (lobe
+    /// probability, one Fresnel and one masking term) computed once for NEE and sampling.
+    #[inline]
+    pub fn at(&self, wo: Vec3) -> KarisWo {
+        let a = self.roughness * self.roughness;
+        let k = (self.roughness + 1.0) * (self.roughness + 1.0) / 8.0;
+        KarisWo {
+            wo,
+            diffuse: self.albedo * (1.0 / PI),
+            ps: if wo.z > 0.0 { self.specular_probability(wo) } else { 0.0 },
+            a2: a * a,
+            k,
+            g1_wo: wo.z / (wo.z * (1.0 - k) + k),
+            specular_weight: self.specular_weight,
+        }
+    }
+}
+
+/// [`Karis`] bound to an outgoing direction (see [`Karis::at`]); the same arithmetic as the
+/// free functions [`ggx_d`], [`g1`] and [`fresnel`], so results are bit-identical.
+#[derive(Clone, Copy, Debug)]
+pub struct KarisWo {
+    wo: Vec3,
+    diffuse: Vec3,
+    ps: f32,
+    a2: f32,
+    k: f32,
+    g1_wo: f32,
+    specular_weight: f32,
+}
+
+impl KarisWo {
+    #[inline]
+    fn ggx_d(&self, n_h: f32) -> f32 {
+        let d = n_h * n_h * (self.a2 - 1.0) + 1.0;
+        self.a2 / (PI * d * d)
+    }
+
+    /// `(f(wo, wi), pdf(wo, wi))`.
+    #[inline]
+    pub fn eval_pdf(&self, wi: Vec3) -> (Vec3, f32) {
+        let wo = self.wo;
+        if wo.z <= 0.0 || wi.z <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let ps = self.ps;
+        if ps == 0.0 {
+            return (self.diffuse, wi.z / PI);
+        }
+        let h = (wo + wi).normalize();
+        let v_h = wo.dot(h).max(0.0);
+        let d = self.ggx_d(h.z);
+        let g = self.g1_wo * (wi.z / (wi.z * (1.0 - self.k) + self.k));
+        let spec = self.specular_weight * d * fresnel(v_h) * g / (4.0 * wo.z * wi.z);
+        let pdf = ps * d * h.z / (4.0 * v_h.max(1e-8)) + (1.0 - ps) * wi.z / PI;
+        (self.diffuse + Vec3::splat(spec), pdf)
+    }
+
+    /// See [`Karis::sample`].
+    #[inline(always)]
+    pub fn sample(&self, u_lobe: f32, u: [f32; 2]) -> Option<BrdfSample> {
+        let wo = self.wo;
         if wo.z <= 0.0 {
             return None;
         }
-        let ps = self.specular_probability(wo);
-        let wi = if u_lobe < ps {
-            let a = self.roughness * self.roughness;
-            let a2 = a * a;
+        let wi = if u_lobe < self.ps {
+            let a2 = self.a2;
             let cos2 = ((1.0 - u[0]) / (1.0 + (a2 - 1.0) * u[0])).clamp(0.0, 1.0);
             let cos_t = cos2.sqrt();
             let sin_t = (1.0 - cos2).max(0.0).sqrt();
-            let phi = 2.0 * PI * u[1];
-            let h = Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t);
+            let (sin_p, cos_p) = (2.0 * PI * u[1]).sin_cos();
+            let h = Vec3::new(sin_t * cos_p, sin_t * sin_p, cos_t);
             2.0 * wo.dot(h) * h - wo
         } else {
             let r = u[0].sqrt();
-            let phi = 2.0 * PI * u[1];
-            Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u[0]).max(0.0).sqrt())
+            let (sin_p, cos_p) = (2.0 * PI * u[1]).sin_cos();
+            Vec3::new(r * cos_p, r * sin_p, (1.0 - u[0]).max(0.0).sqrt())
         };
         if wi.z <= 1e-7 {
             return None;
         }
-        let (f, pdf) = self.eval_pdf(wo, wi);
+        let (f, pdf) = self.eval_pdf(wi);
         if !(pdf > 0.0) || !pdf.is_finite() {
             return None;
         }

@@ -121,6 +121,7 @@ impl AreaLights {
     }
 
     /// Uniform point on light `k` (by area).
+    #[inline(always)]
     pub fn sample(&self, k: usize, u_tri: f32, u: [f32; 2]) -> Option<LightPoint> {
         if self.tris[k].is_empty() {
             return None;

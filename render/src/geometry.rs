@@ -57,6 +57,9 @@ pub struct SceneGeometry {
     tri_v: Vec<[u32; 3]>,
     tri_ng: Vec<Vec3>,
     tri_dpduv: Vec<(Vec3, Vec3)>,
+    /// Unit tangent and bitangent of the face-normal frame (what [`Self::shading_frame`] builds
+    /// when the mesh has no vertex normals; the same for both sides).
+    tri_tb: Vec<(Vec3, Vec3)>,
     tri_part: Vec<u32>,
     positions: Vec<Vec3>,
     normals: Vec<Vec3>,
@@ -95,6 +98,7 @@ impl SceneGeometry {
             tri_ng.push(ng);
             tri_dpduv.push((dpdu, dpdv));
         }
+        let tri_tb = tri_ng.iter().zip(&tri_dpduv).map(|(&ng, &(dpdu, dpdv))| tangent_frame(ng, dpdu, dpdv)).collect();
         let n_surface = all.len() as u32;
         let mut emitter = Vec::new();
         for (k, tris) in lights.tris.iter().enumerate() {
@@ -109,6 +113,7 @@ impl SceneGeometry {
             tri_v: mesh.triangles.clone(),
             tri_ng,
             tri_dpduv,
+            tri_tb,
             tri_part: mesh.tri_part.clone(),
             positions: mesh.positions.clone(),
             normals: mesh.normals.clone(),
@@ -119,7 +124,7 @@ impl SceneGeometry {
     }
 
     /// Closest hit along a unit direction.
-    #[inline]
+    #[inline(always)]
     pub fn trace(&self, o: Vec3, d: Vec3, tmax: f32) -> Traced {
         let Some(h) = self.bvh.intersect(o, d, tmax) else { return Traced::Miss };
         if h.prim >= self.n_surface {
@@ -158,12 +163,18 @@ impl SceneGeometry {
     /// Shading frame at `hit` seen from `wo` (unit, away from the surface), with a tangent-space
     /// normal `tn` from the material (`[0, 0, 1]` = unperturbed). Surfaces are two-sided: the
     /// frame is built on the side `wo` is on. A perturbed normal that would hide `wo` is ignored.
+    #[inline(always)]
     pub fn shading_frame(&self, hit: &SurfaceHit, wo: Vec3, tn: [f32; 3]) -> ShadingFrame {
         let ng = if hit.ng.dot(wo) >= 0.0 { hit.ng } else { -hit.ng };
-        let n = if hit.ns.dot(ng) >= 0.0 { hit.ns } else { -hit.ns };
-        let base = Frame::new(n, hit.dpdu);
-        let sign = if base.b.dot(hit.dpdv) < 0.0 { -1.0 } else { 1.0 };
-        let (t, b) = (base.t, base.b * sign);
+        let (n, t, b) = if self.normals.is_empty() && hit.prim < self.n_surface {
+            // Flat shading: the tangent frame is per triangle and does not depend on the side.
+            let (t, b) = self.tri_tb[hit.prim as usize];
+            (ng, t, b)
+        } else {
+            let n = if hit.ns.dot(ng) >= 0.0 { hit.ns } else { -hit.ns };
+            let (t, b) = tangent_frame(n, hit.dpdu, hit.dpdv);
+            (n, t, b)
+        };
         let mut ns = n;
         if tn != [0.0, 0.0, 1.0] {
             let m = (t * tn[0] + b * tn[1] + n * tn[2]).normalize_or_zero();
@@ -174,7 +185,9 @@ impl SceneGeometry {
         if ns.dot(wo) <= 0.0 {
             ns = ng;
         }
-        ShadingFrame { ng, frame: Frame::new(ns, t), tangent: t, bitangent: b }
+        // t is already orthogonal to n: only a perturbed normal needs a new tangent.
+        let frame = if ns == n { Frame { t, b: n.cross(t), n } } else { Frame::new(ns, t) };
+        ShadingFrame { ng, frame, tangent: t, bitangent: b }
     }
 
     /// Origin for a ray leaving `p` on the side of the (oriented) normal `n`.
@@ -182,4 +195,12 @@ impl SceneGeometry {
     pub fn offset(&self, p: Vec3, n: Vec3) -> Vec3 {
         p + n * self.eps
     }
+}
+
+/// Unit tangent along `dpdu` orthogonal to `n`, and the bitangent `± n × t` with the sign of
+/// `dpdv` (both unchanged when `n` flips).
+fn tangent_frame(n: Vec3, dpdu: Vec3, dpdv: Vec3) -> (Vec3, Vec3) {
+    let base = Frame::new(n, dpdu);
+    let sign = if base.b.dot(dpdv) < 0.0 { -1.0 } else { 1.0 };
+    (base.t, base.b * sign)
 }

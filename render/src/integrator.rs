@@ -211,7 +211,14 @@ impl Renderer {
     /// Radiance arriving at `o` from direction `-d` (d unit, leaving `o`), accumulated per slot
     /// into `st.out` at unit emission. `prev_pdf` is the solid-angle pdf with which `d` was
     /// sampled (0 = not sampled by a BRDF: camera rays, light-grid rays; no MIS on emitter hits).
-    pub fn li(&self, mut o: Vec3, mut d: Vec3, cfg: &PathConfig, st: &mut PathState) {
+    pub fn li(&self, o: Vec3, d: Vec3, cfg: &PathConfig, st: &mut PathState) {
+        self.li_inline(o, d, cfg, st)
+    }
+
+    /// [`Renderer::li`], inlined into the render loop (so that it is compiled for the CPU
+    /// features the loop is compiled for).
+    #[inline(always)]
+    fn li_inline(&self, mut o: Vec3, mut d: Vec3, cfg: &PathConfig, st: &mut PathState) {
         let sel = self.selection(cfg.per_light);
         let n_lights = self.lights.len();
         let mut beta = Vec3::ONE;
@@ -252,19 +259,15 @@ impl Renderer {
             }
             let wo = -d;
             let binding = &self.materials[hit.part as usize];
-            let s = binding.eval(hit.uv);
-            let sf = self.geometry.shading_frame(&hit, wo, s.normal);
-            let mut brdf = Karis::new(Vec3::from(s.albedo), s.roughness);
-            if cfg.diffuse_only {
-                brdf = brdf.diffuse_only();
-            }
-            let wo_l = sf.frame.to_local(wo);
-            if wo_l.z <= 0.0 {
-                return;
-            }
-            let origin = self.geometry.offset(hit.p, sf.ng);
+            // The material's texels load while the shadow ray is traced: NEE is sampled and its
+            // visibility tested before shading, with only the geometric tests; the shading-frame
+            // test and the contribution wait for the BRDF (same random numbers, same estimate).
+            binding.prefetch(hit.uv);
+            let ng = if hit.ng.dot(wo) >= 0.0 { hit.ng } else { -hit.ng };
+            let origin = self.geometry.offset(hit.p, ng);
 
-            // Next-event estimation.
+            // Next-event estimation: (slot, wi, radiance, light pdf) of an unoccluded sample.
+            let mut nee: Option<(usize, Vec3, Vec3, f32)> = None;
             if sel.total > 0.0 {
                 let (slot, u_tri) = sel.sample(st.rng.next_f32());
                 let p_sel = sel.pmf(slot);
@@ -276,41 +279,51 @@ impl Renderer {
                         let dist = dist2.sqrt();
                         let wi = to / dist;
                         let cos_l = -lp.n.dot(wi);
-                        if cos_l > 0.0 && wi.dot(sf.ng) > 0.0 {
-                            let wi_l = sf.frame.to_local(wi);
-                            if wi_l.z > 0.0 {
-                                st.rays += 1;
-                                if !self.geometry.occluded(origin, wi, dist * (1.0 - 1e-4) - self.geometry.eps) {
-                                    let pdf_l = p_sel * lp.pdf_area * dist2 / cos_l;
-                                    let (f, pdf_b) = brdf.eval_pdf(wo_l, wi_l);
-                                    let w = power_heuristic(pdf_l, pdf_b);
-                                    st.out[slot] += beta * f * (wi_l.z * w / pdf_l);
-                                }
+                        if cos_l > 0.0 && wi.dot(ng) > 0.0 {
+                            st.rays += 1;
+                            if !self.geometry.occluded(origin, wi, dist * (1.0 - 1e-4) - self.geometry.eps) {
+                                nee = Some((slot, wi, Vec3::ONE, p_sel * lp.pdf_area * dist2 / cos_l));
                             }
                         }
                     }
                 } else if let Some(env) = &self.env {
                     if let Some((wi, le, pdf)) = env.sample(u) {
-                        let wi_l = sf.frame.to_local(wi);
-                        if wi_l.z > 0.0 && wi.dot(sf.ng) > 0.0 && pdf > 0.0 {
+                        if wi.dot(ng) > 0.0 && pdf > 0.0 {
                             st.rays += 1;
                             if !self.geometry.occluded(origin, wi, f32::INFINITY) {
-                                let pdf_l = p_sel * pdf;
-                                let (f, pdf_b) = brdf.eval_pdf(wo_l, wi_l);
-                                let w = power_heuristic(pdf_l, pdf_b);
-                                st.out[slot] += beta * f * le * (wi_l.z * w / pdf_l);
+                                nee = Some((slot, wi, le, p_sel * pdf));
                             }
                         }
                     }
                 }
             }
 
+            let s = binding.eval(hit.uv);
+            let sf = self.geometry.shading_frame(&hit, wo, s.normal);
+            let mut brdf = Karis::new(Vec3::from(s.albedo), s.roughness);
+            if cfg.diffuse_only {
+                brdf = brdf.diffuse_only();
+            }
+            let wo_l = sf.frame.to_local(wo);
+            if wo_l.z <= 0.0 {
+                return;
+            }
+            let brdf = brdf.at(wo_l);
+            if let Some((slot, wi, le, pdf_l)) = nee {
+                let wi_l = sf.frame.to_local(wi);
+                if wi_l.z > 0.0 {
+                    let (f, pdf_b) = brdf.eval_pdf(wi_l);
+                    let w = power_heuristic(pdf_l, pdf_b);
+                    st.out[slot] += beta * f * le * (wi_l.z * w / pdf_l);
+                }
+            }
+
             // Continue the path.
             let u_lobe = st.rng.next_f32();
             let u = st.rng.next_2d();
-            let Some(bs) = brdf.sample(wo_l, u_lobe, u) else { return };
+            let Some(bs) = brdf.sample(u_lobe, u) else { return };
             let wi = sf.frame.to_world(bs.wi);
-            if wi.dot(sf.ng) <= 0.0 {
+            if wi.dot(ng) <= 0.0 {
                 return;
             }
             beta *= bs.weight;
@@ -345,24 +358,7 @@ impl Renderer {
         let cfg = opts.path_config();
         let body = |slots: &mut Vec<Vec3>| {
             slots.par_chunks_mut(w * ns).enumerate().for_each(|(y, row)| {
-                let mut acc = vec![Vec3::ZERO; ns];
-                let mut row_rays = 0u64;
-                for x in 0..w {
-                    let pixel = (y * w + x) as u64;
-                    acc.iter_mut().for_each(|a| *a = Vec3::ZERO);
-                    for s in 0..opts.spp {
-                        let mut st = PathState { rng: Rng::new(opts.seed, pixel, s as u64), rays: 0, out: &mut acc };
-                        let j = st.rng.next_2d();
-                        let d = cam.direction(x as f32 + j[0], y as f32 + j[1]);
-                        self.li(cam.position, d, &cfg, &mut st);
-                        row_rays += st.rays;
-                    }
-                    let inv = 1.0 / opts.spp as f32;
-                    for k in 0..ns {
-                        row[x * ns + k] = acc[k] * inv;
-                    }
-                }
-                rays.fetch_add(row_rays, Ordering::Relaxed);
+                rays.fetch_add(self.render_row(&cam, opts, &cfg, y, row), Ordering::Relaxed);
                 bar.inc(1);
             });
         };
@@ -388,6 +384,47 @@ impl Renderer {
             rays: rays.into_inner(),
             seconds: start.elapsed().as_secs_f64(),
         })
+    }
+
+    /// Row `y` of the slot images (`row`: width × slots); returns the rays cast. Dispatches to a
+    /// copy compiled for AVX2 where the CPU has it (VEX encoding, SSE4.1 rounding and blends;
+    /// no FMA contraction, so the results are bit-identical to the baseline copy).
+    fn render_row(&self, cam: &Camera, opts: &RenderOptions, cfg: &PathConfig, y: usize, row: &mut [Vec3]) -> u64 {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports the features the function is compiled for.
+            return unsafe { self.render_row_avx2(cam, opts, cfg, y, row) };
+        }
+        self.render_row_impl(cam, opts, cfg, y, row)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn render_row_avx2(&self, cam: &Camera, opts: &RenderOptions, cfg: &PathConfig, y: usize, row: &mut [Vec3]) -> u64 {
+        self.render_row_impl(cam, opts, cfg, y, row)
+    }
+
+    #[inline(always)]
+    fn render_row_impl(&self, cam: &Camera, opts: &RenderOptions, cfg: &PathConfig, y: usize, row: &mut [Vec3]) -> u64 {
+        let (w, ns) = (opts.width, self.n_slots());
+        let mut acc = vec![Vec3::ZERO; ns];
+        let mut row_rays = 0u64;
+        for x in 0..w {
+            let pixel = (y * w + x) as u64;
+            acc.iter_mut().for_each(|a| *a = Vec3::ZERO);
+            for s in 0..opts.spp {
+                let mut st = PathState { rng: Rng::new(opts.seed, pixel, s as u64), rays: 0, out: &mut acc };
+                let j = st.rng.next_2d();
+                let d = cam.direction(x as f32 + j[0], y as f32 + j[1]);
+                self.li_inline(cam.position, d, cfg, &mut st);
+                row_rays += st.rays;
+            }
+            let inv = 1.0 / opts.spp as f32;
+            for k in 0..ns {
+                row[x * ns + k] = acc[k] * inv;
+            }
+        }
+        row_rays
     }
 
     /// Cast `passes` jittered camera rays per pixel (closest hit only); returns (rays, seconds).

@@ -3,9 +3,10 @@
 //!
 //! Owns: loading and validating scene folders (`photoscene-scene/1`, see
 //! `shared/design/scene-format.md`), OBJ meshes with one material part per `usemtl`, pinhole
-//! cameras, the BVH (obvhs CWBVH), the shading layer ([`brdf`], the exact formulas the fit uses),
-//! the material interface ([`SurfaceMaterial`], [`MaterialBinding`]), the path tracer with
-//! next-event estimation and MIS, G-buffers, light grids, per-light renders and image I/O.
+//! cameras, the BVH ([`bvh`]: 4-wide, collapsed from an obvhs binary BVH), the shading layer
+//! ([`brdf`], the exact formulas the fit uses), the material interface ([`SurfaceMaterial`],
+//! [`MaterialBinding`]), the path tracer with next-event estimation and MIS, G-buffers, light
+//! grids, per-light renders and image I/O.
 //!
 //! Must never: depend on the grammar/compiler/JIT/runtime crates (render is a leaf; the runtime
 //! implements [`SurfaceMaterial`] for compiled graphs), read `truth/` on behalf of the fit (only

@@ -42,6 +42,10 @@ pub trait SurfaceMaterial: Send + Sync {
             *o = self.eval(*uv);
         }
     }
+
+    /// A hint that [`SurfaceMaterial::eval`] at `uv` follows soon: start loading what it reads
+    /// (texels) so the path tracer can trace a shadow ray meanwhile. No effect on results.
+    fn prefetch(&self, _uv: [f32; 2]) {}
 }
 
 /// The same sample everywhere.
@@ -138,17 +142,18 @@ impl Texture {
         }
     }
 
-    /// Bilinear lookup at OBJ-convention (u, v), repeat wrap.
+    /// The four texels of a bilinear lookup (x0, x1, y0, y1) and the weights (fx, fy); `None`
+    /// for a non-finite uv.
     #[inline]
-    pub fn sample(&self, uv: [f32; 2]) -> [f32; 3] {
+    fn footprint(&self, uv: [f32; 2]) -> Option<([usize; 4], f32, f32)> {
         let (w, h) = (self.width as f32, self.height as f32);
-        let u = uv[0] - uv[0].floor();
-        let v = uv[1] - uv[1].floor();
+        let u = uv[0] - floor(uv[0]);
+        let v = uv[1] - floor(uv[1]);
         // x in [-0.5, w - 0.5), y in [-0.5, h - 0.5]
         let x = u * w - 0.5;
         let y = (1.0 - v) * h - 0.5;
         if !(x.is_finite() && y.is_finite()) {
-            return self.texel(0, 0);
+            return None;
         }
         let (x0f, y0f) = ((x + 1.0) as i32 - 1, (y + 1.0) as i32 - 1); // floor for x >= -1
         let (fx, fy) = (x - x0f as f32, y - y0f as f32);
@@ -163,6 +168,13 @@ impl Texture {
         };
         let (x0, x1) = (wrap(x0f, self.width), wrap(x0f + 1, self.width));
         let (y0, y1) = (wrap(y0f, self.height), wrap(y0f + 1, self.height));
+        Some(([x0, x1, y0, y1], fx, fy))
+    }
+
+    /// Bilinear lookup at OBJ-convention (u, v), repeat wrap.
+    #[inline]
+    pub fn sample(&self, uv: [f32; 2]) -> [f32; 3] {
+        let Some(([x0, x1, y0, y1], fx, fy)) = self.footprint(uv) else { return self.texel(0, 0) };
         let (a, b, c, d) = (self.texel(x0, y0), self.texel(x1, y0), self.texel(x0, y1), self.texel(x1, y1));
         let mut out = [0.0; 3];
         for k in 0..3 {
@@ -172,6 +184,46 @@ impl Texture {
         }
         out
     }
+
+    /// Start loading the texels [`Texture::sample`] at `uv` reads (a cache hint only).
+    #[inline]
+    pub fn prefetch(&self, uv: [f32; 2]) {
+        let Some(([x0, _, y0, y1], _, _)) = self.footprint(uv) else { return };
+        // x0 and x1 share a cache line but for one texel in 16 (8-bit) or 5 (float).
+        for (x, y) in [(x0, y0), (x0, y1)] {
+            let i = y * self.width + x;
+            match &self.texels {
+                Texels::Linear(d) => prefetch(&d[i]),
+                Texels::Srgb8(d) => prefetch(&d[i]),
+            }
+        }
+    }
+}
+
+/// `x.floor()` without a libm call on x86-64's baseline (no SSE4.1 `roundss`); the same value.
+#[inline(always)]
+fn floor(x: f32) -> f32 {
+    if x.abs() < 8_388_608.0 {
+        let t = x as i32 as f32; // truncation, exact below 2^23
+        if t > x {
+            t - 1.0
+        } else {
+            t
+        }
+    } else {
+        x.floor()
+    }
+}
+
+#[inline(always)]
+fn prefetch<T>(p: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch never faults and has no effect on memory contents.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p as *const T as *const i8)
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
 }
 
 /// Roughness of an [`ImageMaterial`]: a constant or the first channel of a texture.
@@ -215,6 +267,16 @@ impl SurfaceMaterial for ImageMaterial {
         };
         SurfaceSample { albedo: self.albedo.sample(uv), roughness, normal }
     }
+
+    fn prefetch(&self, uv: [f32; 2]) {
+        self.albedo.prefetch(uv);
+        if let RoughnessSource::Texture(t) = &self.roughness {
+            t.prefetch(uv);
+        }
+        if let Some(t) = &self.normal_map {
+            t.prefetch(uv);
+        }
+    }
 }
 
 /// A material attached to one part.
@@ -257,6 +319,12 @@ impl MaterialBinding {
     pub fn transform_uv(&self, uv: [f32; 2]) -> [f32; 2] {
         let m = &self.uv_transform;
         [m[0][0] * uv[0] + m[0][1] * uv[1] + m[0][2], m[1][0] * uv[0] + m[1][1] * uv[1] + m[1][2]]
+    }
+
+    /// See [`SurfaceMaterial::prefetch`] (at the mesh uv).
+    #[inline]
+    pub fn prefetch(&self, uv: [f32; 2]) {
+        self.material.prefetch(self.transform_uv(uv));
     }
 
     /// Evaluate at the mesh uv: transform, evaluate, scale, clamp to the valid range.
