@@ -137,7 +137,9 @@ impl RayPre {
     }
 }
 
-/// Traversal stack entries (at most 3 a level plus one); [`Bvh::new`] checks the tree's depth.
+/// Traversal stack entries kept on the call stack (at most 3 a level plus one): enough for any
+/// tree of depth ≤ 85. Deeper trees (degenerate meshes: thousands of coincident triangles)
+/// traverse with a heap-allocated stack of [`Bvh::stack_len`] entries instead.
 const STACK: usize = 256;
 const FAR_SCALE: f32 = 1.0 + 2.0 * 3.0 * f32::EPSILON * 0.5 / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
@@ -161,46 +163,56 @@ impl Bvh {
             set_child(&mut node, 0, &bvh2, 0, &mut out.packs, triangles);
             out.nodes.push(node);
         } else {
-            out.collapse(&bvh2, 0, 1, triangles);
+            out.collapse(&bvh2, 0, triangles);
         }
-        assert!(3 * out.depth + 1 <= STACK, "BVH of depth {} is too deep to traverse", out.depth);
         out
     }
 
-    /// Append the 4-wide node for binary inner node `n` (and, recursively, its subtree).
-    fn collapse(&mut self, bvh2: &Bvh2, n: usize, depth: usize, triangles: &[[Vec3; 3]]) -> u32 {
-        self.depth = self.depth.max(depth);
-        let first = bvh2.nodes[n].first_index as usize;
-        let mut kids = vec![first, first + 1];
-        while kids.len() < 4 {
-            // Open the inner child with the largest surface area.
-            let best = kids
-                .iter()
-                .enumerate()
-                .filter(|(_, &k)| !bvh2.nodes[k].is_leaf())
-                .max_by(|a, b| {
-                    let (ha, hb) = (bvh2.nodes[*a.1].aabb().half_area(), bvh2.nodes[*b.1].aabb().half_area());
-                    ha.total_cmp(&hb)
-                })
-                .map(|(i, _)| i);
-            let Some(i) = best else { break };
-            let k = kids.swap_remove(i);
-            let c = bvh2.nodes[k].first_index as usize;
-            kids.extend([c, c + 1]);
-        }
-        let index = self.nodes.len();
-        self.nodes.push(empty_node());
-        let mut node = empty_node();
-        for (slot, &k) in kids.iter().enumerate() {
-            if bvh2.nodes[k].is_leaf() {
-                set_child(&mut node, slot, bvh2, k, &mut self.packs, triangles);
-            } else {
-                set_bounds(&mut node, slot, bvh2, k);
-                node.child[slot] = self.collapse(bvh2, k, depth + 1, triangles);
+    /// Traversal stack entries a ray may need in this tree.
+    fn stack_len(&self) -> usize {
+        3 * self.depth + 1
+    }
+
+    /// Appends 4-wide nodes for the subtree of binary inner node `root`. Iterative, so that
+    /// degenerate meshes (a binary tree thousands of levels deep) cannot overflow the stack.
+    fn collapse(&mut self, bvh2: &Bvh2, root: usize, triangles: &[[Vec3; 3]]) {
+        // (binary node, depth, parent 4-wide node and slot to link it from)
+        let mut work: Vec<(usize, usize, Option<(usize, usize)>)> = vec![(root, 1, None)];
+        while let Some((n, depth, parent)) = work.pop() {
+            self.depth = self.depth.max(depth);
+            let first = bvh2.nodes[n].first_index as usize;
+            let mut kids = vec![first, first + 1];
+            while kids.len() < 4 {
+                // Open the inner child with the largest surface area.
+                let best = kids
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, &k)| !bvh2.nodes[k].is_leaf())
+                    .max_by(|a, b| {
+                        let (ha, hb) = (bvh2.nodes[*a.1].aabb().half_area(), bvh2.nodes[*b.1].aabb().half_area());
+                        ha.total_cmp(&hb)
+                    })
+                    .map(|(i, _)| i);
+                let Some(i) = best else { break };
+                let k = kids.swap_remove(i);
+                let c = bvh2.nodes[k].first_index as usize;
+                kids.extend([c, c + 1]);
             }
+            let index = self.nodes.len();
+            if let Some((p, slot)) = parent {
+                self.nodes[p].child[slot] = index as u32;
+            }
+            let mut node = empty_node();
+            for (slot, &k) in kids.iter().enumerate() {
+                if bvh2.nodes[k].is_leaf() {
+                    set_child(&mut node, slot, bvh2, k, &mut self.packs, triangles);
+                } else {
+                    set_bounds(&mut node, slot, bvh2, k);
+                    work.push((k, depth + 1, Some((index, slot))));
+                }
+            }
+            self.nodes.push(node);
         }
-        self.nodes[index] = node;
-        index as u32
     }
 
     /// Closest hit with `0 < t < tmax`; `d` must be unit length for `t` to be a distance.
@@ -212,7 +224,9 @@ impl Bvh {
         let pre = RayPre::new(o, d);
         let mut tmax = tmax;
         let mut best: Option<(u32, f32, f32)> = None;
-        let mut stack = [MaybeUninit::<(u32, f32)>::uninit(); STACK];
+        let mut local = [MaybeUninit::<(u32, f32)>::uninit(); STACK];
+        let mut heap = Vec::new();
+        let stack = traversal_stack(&mut local, &mut heap, self.stack_len());
         stack[0].write((0, 0.0));
         let mut sp = 1usize;
         while sp > 0 {
@@ -271,7 +285,9 @@ impl Bvh {
             return false;
         }
         let pre = RayPre::new(o, d);
-        let mut stack = [MaybeUninit::<u32>::uninit(); STACK];
+        let mut local = [MaybeUninit::<u32>::uninit(); STACK];
+        let mut heap = Vec::new();
+        let stack = traversal_stack(&mut local, &mut heap, self.stack_len());
         stack[0].write(0);
         let mut sp = 1usize;
         while sp > 0 {
@@ -294,6 +310,22 @@ impl Bvh {
             }
         }
         false
+    }
+}
+
+/// The call-stack array when the tree is shallow enough (always, for sane meshes), else a heap
+/// buffer of `len` entries.
+#[inline(always)]
+fn traversal_stack<'a, T: Copy>(
+    local: &'a mut [MaybeUninit<T>; STACK],
+    heap: &'a mut Vec<MaybeUninit<T>>,
+    len: usize,
+) -> &'a mut [MaybeUninit<T>] {
+    if len <= STACK {
+        local
+    } else {
+        heap.resize(len, MaybeUninit::uninit());
+        heap
     }
 }
 
@@ -330,4 +362,26 @@ fn set_child(node: &mut Node4, slot: usize, bvh2: &Bvh2, k: usize, packs: &mut V
     assert!(packs.len() < LEAF as usize, "too many BVH leaves");
     node.child[slot] = LEAF | packs.len() as u32;
     packs.push(pk);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Degenerate meshes make binary trees thousands of levels deep: building must not
+    /// overflow the stack and traversal must still find the closest hit.
+    #[test]
+    fn coincident_triangles_build_and_trace() {
+        let mut tris: Vec<[Vec3; 3]> = (0..2_000).map(|_| [Vec3::ZERO, Vec3::X, Vec3::Y]).collect();
+        tris.push([Vec3::new(0.0, 0.0, 0.5), Vec3::new(1.0, 0.0, 0.5), Vec3::new(0.0, 1.0, 0.5)]);
+        let bvh = Bvh::new(&tris);
+        assert!(bvh.stack_len() > STACK, "the test must exercise the deep-tree path (depth {})", bvh.depth);
+        let hit = bvh.intersect(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z, f32::INFINITY).expect("a hit");
+        assert_eq!(hit.prim, 2_000);
+        assert!((hit.t - 0.5).abs() < 1e-5);
+        let below = bvh.intersect(Vec3::new(0.2, 0.2, 0.25), Vec3::NEG_Z, f32::INFINITY).expect("a hit");
+        assert!(below.prim < 2_000 && (below.t - 0.25).abs() < 1e-5);
+        assert!(bvh.occluded(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z, 0.9));
+        assert!(!bvh.occluded(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z, 0.4));
+    }
 }
