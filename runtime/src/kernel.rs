@@ -69,7 +69,7 @@ pub struct Kernel {
 }
 
 /// Result of [`Kernel::adjoint`].
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Gradients {
     /// Forward outputs at every point (the adjoint computes them anyway), SoA.
     pub values: Vec<Vec<f32>>,
@@ -126,16 +126,28 @@ impl Kernel {
     }
 
     /// Forward outputs at the points `(u[k], v[k])`, one column per output.
+    ///
+    /// Allocates the columns; in a loop, [`Kernel::eval_into`] reuses them instead (fresh
+    /// pages are faulted in on first write, which for cheap graphs costs as much as the
+    /// kernel itself).
     pub fn eval(&self, params: &[f32], u: &[f32], v: &[f32]) -> Result<Vec<Vec<f32>>, KernelError> {
+        let mut cols = Vec::new();
+        self.eval_into(params, u, v, &mut cols)?;
+        Ok(cols)
+    }
+
+    /// [`Kernel::eval`] into `cols`, resized to one column of `u.len()` per output; columns
+    /// already that long are overwritten in place, without allocating.
+    pub fn eval_into(&self, params: &[f32], u: &[f32], v: &[f32], cols: &mut Vec<Vec<f32>>) -> Result<(), KernelError> {
         check_points(u, v)?;
         let n = u.len();
-        let mut cols = vec![vec![0.0f32; n]; self.forward_jit.num_outputs()];
-        let work = split_columns(&mut cols, n);
+        resize_columns(cols, self.forward_jit.num_outputs(), n);
+        let work = split_columns(cols, n);
         work.into_par_iter().enumerate().try_for_each(|(c, mut outs)| {
             let r = chunk_range(c, n);
             self.forward_jit.run(params, &u[r.clone()], &v[r], &[], &mut outs)
         })?;
-        Ok(cols)
+        Ok(())
     }
 
     /// Forward outputs at the texel centres of a `w`×`h` image, row-major, each column
@@ -151,6 +163,20 @@ impl Kernel {
     /// `k`. Returns the forward values, per-point `d_u`, `d_v`, and per-slot parameter
     /// gradients summed over all points (deterministically, see the module docs).
     pub fn adjoint(&self, params: &[f32], u: &[f32], v: &[f32], d_out: &[&[f32]]) -> Result<Gradients, KernelError> {
+        let mut gradients = Gradients::default();
+        self.adjoint_into(params, u, v, d_out, &mut gradients)?;
+        Ok(gradients)
+    }
+
+    /// [`Kernel::adjoint`] into `out`, reusing its columns when they are already long enough.
+    pub fn adjoint_into(
+        &self,
+        params: &[f32],
+        u: &[f32],
+        v: &[f32],
+        d_out: &[&[f32]],
+        out: &mut Gradients,
+    ) -> Result<(), KernelError> {
         let adj = self.adjoint.as_ref().ok_or(KernelError::NoAdjoint)?;
         check_points(u, v)?;
         let n = u.len();
@@ -166,7 +192,13 @@ impl Kernel {
         }
         let nw = adj.wrt.len();
         // Columns kept per point: forward values, d_u, d_v. d_param columns are chunk scratch.
-        let mut kept = vec![vec![0.0f32; n]; nf + 2];
+        let mut kept = std::mem::take(&mut out.values);
+        resize_columns(&mut kept, nf, n);
+        kept.push(std::mem::take(&mut out.d_u));
+        kept.push(std::mem::take(&mut out.d_v));
+        for col in &mut kept[nf..] {
+            col.resize(n, 0.0);
+        }
         let work = split_columns(&mut kept, n);
         let partials: Vec<Vec<f64>> = work
             .into_par_iter()
@@ -188,9 +220,11 @@ impl Kernel {
                 d_params[*slot as usize] += g;
             }
         }
-        let d_v = kept.pop().unwrap_or_default();
-        let d_u = kept.pop().unwrap_or_default();
-        Ok(Gradients { values: kept, d_u, d_v, d_params })
+        out.d_v = kept.pop().unwrap_or_default();
+        out.d_u = kept.pop().unwrap_or_default();
+        out.values = kept;
+        out.d_params = d_params;
+        Ok(())
     }
 }
 
@@ -219,6 +253,14 @@ fn check_points(u: &[f32], v: &[f32]) -> Result<(), KernelError> {
 
 fn chunk_range(c: usize, n: usize) -> std::ops::Range<usize> {
     c * CHUNK..((c + 1) * CHUNK).min(n)
+}
+
+/// Makes `cols` exactly `count` columns of `n` floats, keeping existing allocations.
+fn resize_columns(cols: &mut Vec<Vec<f32>>, count: usize, n: usize) {
+    cols.resize_with(count, Vec::new);
+    for col in cols.iter_mut() {
+        col.resize(n, 0.0);
+    }
 }
 
 /// Regroups `cols` (each `n` long) into per-chunk lists of mutable column slices.

@@ -3,7 +3,7 @@
 
 use psc_compiler::diff::reverse;
 use psc_compiler::ir::{Builder, NodeId, Output, Program};
-use psc_runtime::kernel::{grid_uv, Kernel, KernelError, CHUNK};
+use psc_runtime::kernel::{grid_uv, Gradients, Kernel, KernelError, CHUNK};
 
 fn pool(k: usize) -> rayon::ThreadPool {
     rayon::ThreadPoolBuilder::new().num_threads(k).build().expect("thread pool")
@@ -80,6 +80,28 @@ fn eval_and_adjoint_are_bit_identical_for_1_and_n_threads() {
     }
     // The adjoint's forward values are the forward kernel's values.
     assert_eq!(bits(&one.0), bits(&one.1.values));
+}
+
+/// Reused buffers of any previous shape give the same bits as fresh ones.
+#[test]
+fn eval_into_and_adjoint_into_reuse_buffers_of_any_shape() {
+    let fwd = smooth_forward();
+    let adj = reverse::adjoint(&fwd, &[0, 1, 2, 3]);
+    let k = Kernel::with_adjoint(fwd, adj).unwrap();
+    let p = params();
+    let (mut values, mut gradients) = (vec![vec![f32::NAN; 3]; 7], Gradients::default());
+    for n in [2 * CHUNK + 5, 17, 0, 3 * CHUNK] {
+        let (u, v) = points(n);
+        let s = seeds(n, 3);
+        let s_refs: Vec<&[f32]> = s.iter().map(|c| &c[..]).collect();
+        k.eval_into(&p, &u, &v, &mut values).unwrap();
+        assert_eq!(bits(&values), bits(&k.eval(&p, &u, &v).unwrap()), "eval_into at n = {n}");
+        k.adjoint_into(&p, &u, &v, &s_refs, &mut gradients).unwrap();
+        let fresh = k.adjoint(&p, &u, &v, &s_refs).unwrap();
+        assert_eq!(bits(&gradients.values), bits(&fresh.values), "adjoint_into at n = {n}");
+        assert_eq!(bits(&[gradients.d_u.clone(), gradients.d_v.clone()]), bits(&[fresh.d_u, fresh.d_v]));
+        assert_eq!(gradients.d_params, fresh.d_params);
+    }
 }
 
 #[test]
