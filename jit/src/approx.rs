@@ -75,25 +75,45 @@ fn cos_poly<A: Arith>(a: &mut A, z: A::F) -> A::F {
     a.fma(zz, p, head)
 }
 
-/// sin(x) when `quarter_turns == 0`, cos(x) when it is 1.
-fn sin_cos<A: Arith>(a: &mut A, x: A::F, quarter_turns: i32) -> A::F {
-    let (r, q) = reduce_half_pi(a, x);
+/// The work `sin x` and `cos x` share: the reduced argument's quadrant and both polynomials.
+pub struct SinCosParts<A: Arith> {
+    quadrant: A::I,
+    sin_r: A::F,
+    cos_r: A::F,
+}
+
+// By hand: a derive would require `A: Copy`, but only the lane types need to be.
+impl<A: Arith> Clone for SinCosParts<A> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<A: Arith> Copy for SinCosParts<A> {}
+
+/// Reduces `x` and evaluates both polynomials; [`finish_sin_cos`] then picks sin or cos.
+pub fn sin_cos_parts<A: Arith>(a: &mut A, x: A::F) -> SinCosParts<A> {
+    let (r, quadrant) = reduce_half_pi(a, x);
+    let z = a.mul(r, r);
+    let sin_r = sin_poly(a, r, z);
+    let cos_r = cos_poly(a, z);
+    SinCosParts { quadrant, sin_r, cos_r }
+}
+
+/// sin(x) from its parts when `quarter_turns == 0`, cos(x) when it is 1.
+pub fn finish_sin_cos<A: Arith>(a: &mut A, parts: SinCosParts<A>, quarter_turns: i32) -> A::F {
     let q = if quarter_turns == 0 {
-        q
+        parts.quadrant
     } else {
         let shift = a.i(quarter_turns);
-        a.iadd(q, shift)
+        a.iadd(parts.quadrant, shift)
     };
-    let z = a.mul(r, r);
-    let s = sin_poly(a, r, z);
-    let c = cos_poly(a, z);
     // Odd quadrants swap sin and cos; quadrants 2 and 3 flip the sign.
     let one = a.i(1);
     let two = a.i(2);
     let zero = a.i(0);
     let odd = a.iand(q, one);
     let even = a.ieq(odd, zero);
-    let y = a.sel(even, s, c);
+    let y = a.sel(even, parts.sin_r, parts.cos_r);
     let half_turn = a.iand(q, two);
     let sign = a.shl(half_turn, 30);
     let yb = a.float_to_bits(y);
@@ -102,11 +122,13 @@ fn sin_cos<A: Arith>(a: &mut A, x: A::F, quarter_turns: i32) -> A::F {
 }
 
 pub fn sin<A: Arith>(a: &mut A, x: A::F) -> A::F {
-    sin_cos(a, x, 0)
+    let parts = sin_cos_parts(a, x);
+    finish_sin_cos(a, parts, 0)
 }
 
 pub fn cos<A: Arith>(a: &mut A, x: A::F) -> A::F {
-    sin_cos(a, x, 1)
+    let parts = sin_cos_parts(a, x);
+    finish_sin_cos(a, parts, 1)
 }
 
 /// e^x. Inputs are clamped to [-104, 89] first (NaN passes through the clamp), which keeps

@@ -30,6 +30,7 @@ use cranelift_jit::{JITBuilder, JITModule};
 use cranelift_module::{default_libcall_names, FuncId, Module};
 use psc_compiler::ir::{Op, Program};
 
+use crate::approx;
 use crate::arith::{Arith, Cmp};
 use crate::ops::{eval_op, live_nodes};
 use crate::schedule;
@@ -172,11 +173,30 @@ fn emit_program(a: &mut Lanes, program: &Program, out_cols: &[Value], leaves: Le
         outputs_of.entry(out.node.index()).or_default().push(k);
     }
     let mut vals: Vec<Vec<Value>> = vec![Vec::new(); program.nodes.len()];
+    let mut trig: HashMap<(usize, usize), approx::SinCosParts<Lanes>> = HashMap::new();
     for (i, op) in program.nodes.iter().enumerate() {
         if !live[i] {
             continue;
         }
-        if !op.is_leaf() {
+        if let Op::Sin(x) | Op::Cos(x) = *op {
+            // `sin x` and `cos x` of one `x` (rotations, directions) share the reduction and
+            // both polynomials; only the final quadrant selection differs.
+            let quarter_turns = i32::from(matches!(op, Op::Cos(_)));
+            vals[i] = (0..groups)
+                .map(|g| {
+                    let parts = match trig.get(&(x.index(), g)) {
+                        Some(&parts) => parts,
+                        None => {
+                            let xv = operand(a, program, &vals, x.index(), g, leaves);
+                            let parts = approx::sin_cos_parts(a, xv);
+                            trig.insert((x.index(), g), parts);
+                            parts
+                        }
+                    };
+                    approx::finish_sin_cos(a, parts, quarter_turns)
+                })
+                .collect();
+        } else if !op.is_leaf() {
             vals[i] = (0..groups)
                 .map(|g| {
                     let mut it = op.operands().map(|id| operand(a, program, &vals, id.index(), g, leaves));

@@ -105,8 +105,18 @@ pub fn live_nodes(program: &Program) -> Vec<bool> {
 pub fn flops_per_point(program: &Program) -> usize {
     let mut counter = FlopCounter::default();
     let live = live_nodes(program);
+    // Mirrors codegen: `sin x` and `cos x` of one `x` share everything but the final selection.
+    let mut trig_operands = std::collections::HashSet::new();
     for (op, _) in program.nodes.iter().zip(&live).filter(|(op, l)| **l && !op.is_leaf()) {
-        eval_op(&mut counter, op, (), (), ());
+        match *op {
+            Op::Sin(x) | Op::Cos(x) => {
+                if trig_operands.insert(x) {
+                    approx::sin_cos_parts(&mut counter, ());
+                }
+                approx::finish_sin_cos(&mut counter, approx::sin_cos_parts(&mut FlopCounter::default(), ()), 0);
+            }
+            _ => eval_op(&mut counter, op, (), (), ()),
+        }
     }
     counter.flops
 }
