@@ -45,7 +45,8 @@ pub trait Arith {
     fn sel(&mut self, m: Self::M, a: Self::F, b: Self::F) -> Self::F;
     fn mand(&mut self, a: Self::M, b: Self::M) -> Self::M;
 
-    /// Truncate toward zero, saturating, NaN to 0 (never traps).
+    /// Truncate toward zero; NaN and values outside the `i32` range give `i32::MIN` (never
+    /// traps): x86 `cvttps2dq`, and `psc_compiler::ir::semantics::to_int`.
     fn to_int(&mut self, x: Self::F) -> Self::I;
     /// Signed integer to float, round to nearest.
     fn to_float(&mut self, x: Self::I) -> Self::F;
@@ -138,7 +139,7 @@ impl Arith for Scalar {
         a && b
     }
     fn to_int(&mut self, x: f32) -> i32 {
-        x as i32
+        psc_compiler::ir::semantics::to_int(x)
     }
     fn to_float(&mut self, x: i32) -> f32 {
         x as f32

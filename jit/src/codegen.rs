@@ -68,6 +68,8 @@ pub(crate) fn build(program: &Program, opts: &Options) -> Result<Built, JitError
         return Err(JitError::UnsupportedHost("no native vector rounding (x86-64 needs SSE4.1)".into()));
     }
     let fused = isa.has_native_fma();
+    // cranelift-native always targets the host.
+    let x86 = cfg!(target_arch = "x86_64");
     let ptr = isa.pointer_type();
     let mut module = JITModule::new(JITBuilder::with_isa(isa, default_libcall_names()));
     let mut ctx = module.make_context();
@@ -83,7 +85,8 @@ pub(crate) fn build(program: &Program, opts: &Options) -> Result<Built, JitError
     let mut fctx = FunctionBuilderContext::new();
     {
         let mut b = FunctionBuilder::new(&mut ctx.func, &mut fctx);
-        let mut lanes = Lanes { b: &mut b, fused, table: Value::reserved_value(), constants: ConstTable::default() };
+        let mut lanes =
+            Lanes { b: &mut b, fused, x86, table: Value::reserved_value(), constants: ConstTable::default() };
         body = define(&mut lanes, program, groups, ptr);
         constants = lanes.constants.bits;
         b.seal_all_blocks();
@@ -268,6 +271,8 @@ struct ConstTable {
 struct Lanes<'a, 'f> {
     b: &'a mut FunctionBuilder<'f>,
     fused: bool,
+    /// Whether the target is x86-64 (`x86_cvtt2dq` exists).
+    x86: bool,
     table: Value,
     constants: ConstTable,
 }
@@ -350,7 +355,18 @@ impl Arith for Lanes<'_, '_> {
         self.b.ins().band(a, b)
     }
     fn to_int(&mut self, x: Value) -> Value {
-        self.b.ins().fcvt_to_sint_sat(types::I32X4, x)
+        if self.x86 {
+            self.b.ins().x86_cvtt2dq(types::I32X4, x)
+        } else {
+            // Elsewhere: the saturating conversion, then NaN and out-of-range lanes to i32::MIN.
+            let converted = self.b.ins().fcvt_to_sint_sat(types::I32X4, x);
+            let (lo, hi) = (self.f(-2_147_483_648.0), self.f(2_147_483_648.0));
+            let at_least_lo = self.b.ins().fcmp(FloatCC::GreaterThanOrEqual, x, lo);
+            let below_hi = self.b.ins().fcmp(FloatCC::LessThan, x, hi);
+            let in_range = self.b.ins().band(at_least_lo, below_hi);
+            let min = self.i(i32::MIN);
+            self.b.ins().bitselect(in_range, converted, min)
+        }
     }
     fn to_float(&mut self, x: Value) -> Value {
         self.b.ins().fcvt_from_sint(types::F32X4, x)

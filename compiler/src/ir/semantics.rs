@@ -98,11 +98,15 @@ pub fn select(c: f32, a: f32, b: f32) -> f32 {
     }
 }
 
-/// Float to integer as the JIT does it (`fcvt_to_sint_sat`): truncate toward zero, saturate,
-/// NaN to 0.
+/// Float to integer as the JIT does it (x86 `cvttps2dq`, one instruction): truncate toward
+/// zero; NaN and values outside the `i32` range give `i32::MIN`.
 #[inline]
 pub fn to_int(x: f32) -> i32 {
-    x as i32
+    if (-2_147_483_648.0..2_147_483_648.0).contains(&x) {
+        x as i32
+    } else {
+        i32::MIN
+    }
 }
 
 /// A 2D integer hash (a murmur3-style finaliser over two multiplied lanes) mapped to
@@ -118,4 +122,20 @@ pub fn hash(a: f32, b: f32) -> f32 {
     h = h.wrapping_mul(0x297A_2D39);
     h ^= h >> 15;
     (h >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::to_int;
+
+    #[test]
+    fn to_int_truncates_in_range_and_gives_min_outside() {
+        assert_eq!(to_int(2.9), 2);
+        assert_eq!(to_int(-2.9), -2);
+        assert_eq!(to_int(-2_147_483_648.0), i32::MIN);
+        assert_eq!(to_int(2_147_483_520.0), 2_147_483_520); // the largest f32 below 2^31
+        for outside in [2_147_483_648.0, 1e20, -1e20, f32::INFINITY, f32::NEG_INFINITY, f32::NAN] {
+            assert_eq!(to_int(outside), i32::MIN, "{outside}");
+        }
+    }
 }
