@@ -4,8 +4,9 @@
 //! Coefficients are the classic Cephes single-precision minimax sets; range reductions are
 //! Cody–Waite with split constants. Every input, including NaN and ±inf, goes through the
 //! same straight-line code: there are no branches, no calls and no integer conversion that
-//! can trap (float-to-int conversions give `i32::MIN` out of range). Measured maximum errors (see `tests/transcendentals.rs`,
-//! which asserts them; "ulp"-level figures are against f64 `std`):
+//! can trap (float-to-int conversions give `i32::MIN` out of range). Measured maximum errors
+//! (see `tests/transcendentals.rs`, which asserts them; "ulp"-level figures are against f64
+//! `std`):
 //!
 //! | fn      | domain swept                   | bound asserted                       |
 //! |---------|--------------------------------|--------------------------------------|
