@@ -3,13 +3,13 @@
 //!
 //! Contract of the generated function (established by [`crate::codegen`]):
 //! `fn(params, constants, inputs, outputs, n)`, for `n` a multiple of `block`, reads the
-//! 16-byte aligned lane tables `params[0..num_params]` and `constants[..]`, reads `n` floats from each
-//! of the `2 + num_seeds` input columns, writes `n` floats to each of the `num_outputs` output
-//! columns, and touches no other memory. It makes no calls, takes no locks, keeps no state,
-//! and cannot trap or unwind (no integer division; float-to-int conversions are the
-//! non-trapping `cvttps2dq`). So it is sound to call whenever those pointers are valid for those ranges — which
-//! [`NativeKernel::call`] checks on every call — and output columns do not overlap inputs or
-//! each other (guaranteed by `&mut` borrows).
+//! 16-byte aligned lane tables `params[0..num_params]` and `constants[..]`, reads `n` floats
+//! from each of the `2 + num_seeds` input columns, writes `n` floats to each of the
+//! `num_outputs` output columns, and touches no other memory. It makes no calls, takes no
+//! locks, keeps no state, and cannot trap or unwind (no integer division; float-to-int
+//! conversions are the non-trapping `cvttps2dq`). So it is sound to call whenever those
+//! pointers are valid for those ranges — which [`NativeKernel::call`] checks on every call —
+//! and output columns do not overlap inputs or each other (guaranteed by `&mut` borrows).
 
 use cranelift_jit::JITModule;
 use cranelift_module::FuncId;
