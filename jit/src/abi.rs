@@ -127,6 +127,46 @@ impl NativeKernel {
         Ok(())
     }
 
+    /// Evaluates the single point `(u, v)` of a program without seeds, with every buffer on
+    /// the stack: the renderer's per-hit path, where the general call's bookkeeping would cost
+    /// a noticeable share of a small kernel. Falls back to [`NativeKernel::call`] past the
+    /// stack buffers' sizes.
+    pub(crate) fn call_point(&self, params: &[f32], u: f32, v: f32, out: &mut [f32]) -> Result<(), JitError> {
+        const MAX_BLOCK: usize = 16;
+        const MAX_PARAMS: usize = 64;
+        const MAX_OUTPUTS: usize = 16;
+        let fits = self.block <= MAX_BLOCK && self.num_params <= MAX_PARAMS && self.num_outputs <= MAX_OUTPUTS;
+        if !fits || self.num_inputs != 2 {
+            let mut columns: Vec<[f32; 1]> = vec![[0.0]; out.len()];
+            let mut outputs: Vec<&mut [f32]> = columns.iter_mut().map(|c| &mut c[..]).collect();
+            self.call(params, &[u], &[v], &[], &mut outputs)?;
+            out.iter_mut().zip(&columns).for_each(|(o, c)| *o = c[0]);
+            return Ok(());
+        }
+        if params.len() < self.num_params || out.len() != self.num_outputs {
+            return Err(JitError::Shape("column count or length mismatch at the native boundary".into()));
+        }
+        let mut lanes = [Lanes([0.0; 4]); MAX_PARAMS];
+        for (lane, &p) in lanes.iter_mut().zip(&params[..self.num_params]) {
+            *lane = Lanes::splat(p);
+        }
+        // Every lane of the padded block evaluates the same point.
+        let (u_col, v_col) = ([u; MAX_BLOCK], [v; MAX_BLOCK]);
+        let mut out_cols = [[0.0f32; MAX_BLOCK]; MAX_OUTPUTS];
+        let in_ptrs = [u_col.as_ptr(), v_col.as_ptr()];
+        let out_ptrs: [*mut f32; MAX_OUTPUTS] = std::array::from_fn(|k| out_cols[k].as_mut_ptr());
+        // SAFETY: two input columns and `num_outputs` output columns of MAX_BLOCK ≥ `block`
+        // floats each, all distinct stack arrays that outlive the call; `lanes` holds
+        // `num_params` splatted parameters.
+        unsafe {
+            (self.entry)(lanes.as_ptr(), self.constants.as_ptr(), in_ptrs.as_ptr(), out_ptrs.as_ptr(), self.block)
+        };
+        for (o, col) in out.iter_mut().zip(&out_cols) {
+            *o = col[0];
+        }
+        Ok(())
+    }
+
     /// Runs points `start..n` (fewer than `block`) on copies padded to one block with the last
     /// point, and copies the real results back.
     fn run_tail<'a>(

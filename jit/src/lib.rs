@@ -166,6 +166,33 @@ impl CompiledKernel {
         self.native.call(params, u, v, seeds, outputs)
     }
 
+    /// Evaluates one point of a forward program (no seeds) into `out`, one value per output,
+    /// without allocating: the per-hit path of the renderer. Same results as [`Self::run`] on
+    /// a one-point batch.
+    pub fn run_point(&self, params: &[f32], u: f32, v: f32, out: &mut [f32]) -> Result<(), JitError> {
+        if self.num_seeds != 0 {
+            return Err(JitError::Shape(format!(
+                "run_point needs a program without seeds, this one has {}",
+                self.num_seeds
+            )));
+        }
+        if params.len() < self.num_params {
+            return Err(JitError::Shape(format!(
+                "{} parameters given, the program reads {}",
+                params.len(),
+                self.num_params
+            )));
+        }
+        if out.len() != self.output_names.len() {
+            return Err(JitError::Shape(format!(
+                "{} output values given, the program has {}",
+                out.len(),
+                self.output_names.len()
+            )));
+        }
+        self.native.call_point(params, u, v, out)
+    }
+
     pub fn num_params(&self) -> usize {
         self.num_params
     }

@@ -72,6 +72,23 @@ proptest! {
     }
 
     #[test]
+    fn run_point_matches_the_mirror(spec in spec(), consts in consts(), outs in prop::collection::vec(any::<u32>(), 0..4),
+                                    pts in any::<u64>(), opt in any::<u8>()) {
+        let prog = random_program(&spec, &consts, 0, &outs, OpSet::All);
+        let k = compile_with(&prog, &options(opt)).unwrap();
+        let (u, v, p, _) = points(pts, 9, prog.num_params, 0, true);
+        let mut out = vec![0.0f32; k.num_outputs()];
+        for i in 0..u.len() {
+            k.run_point(&p, u[i], v[i], &mut out).unwrap();
+            let want = mirror_eval_point(&prog, k.uses_fma(), &p, u[i], v[i], &[]);
+            for (o, w) in want.iter().enumerate() {
+                prop_assert!(same_bits(out[o], *w), "point {i} output {o}: run_point {:e} mirror {:e}", out[o], w);
+            }
+        }
+        prop_assert!(k.run_point(&p, 0.5, 0.5, &mut vec![0.0; k.num_outputs() + 1]).is_err());
+    }
+
+    #[test]
     fn jit_matches_interpreter_without_transcendentals(spec in spec(), consts in consts(), seeds in 0u32..3,
                                       outs in prop::collection::vec(any::<u32>(), 0..4),
                                       n in 0usize..70, pts in any::<u64>(), opt in any::<u8>()) {
@@ -199,5 +216,29 @@ fn shared_sin_cos_match_the_mirror() {
                 );
             }
         }
+    }
+}
+
+/// More outputs than `run_point`'s stack buffers hold: it falls back to the general call.
+#[test]
+fn run_point_with_many_outputs_matches_run() {
+    let mut b = Builder::new();
+    let (u, v) = (b.u(), b.v());
+    let mut outputs = Vec::new();
+    let mut x = b.add(u, v);
+    for k in 0..20 {
+        let p = b.param(k % 3);
+        x = b.mul(x, p);
+        x = b.add(x, u);
+        outputs.push(Output { name: format!("o{k}"), node: x });
+    }
+    let prog = b.finish(outputs);
+    let k = psc_jit::compile(&prog).unwrap();
+    let p = [0.5, -1.25, 0.75];
+    let mut point = vec![0.0f32; k.num_outputs()];
+    k.run_point(&p, 0.3, 0.7, &mut point).unwrap();
+    let batch = run_jit(&k, &p, &[0.3], &[0.7], &[]);
+    for (o, col) in batch.iter().enumerate() {
+        assert!(same_bits(point[o], col[0]), "output {o}: {} vs {}", point[o], col[0]);
     }
 }

@@ -132,7 +132,9 @@ pub fn encode_exr(width: usize, height: usize, data: &[[f32; 3]]) -> Result<Vec<
         (p[0], p[1], p[2])
     });
     let mut image = Image::from_channels((width, height), channels);
-    image.layer_data.encoding = Encoding::FAST_LOSSLESS;
+    // Blocks in increasing order: parallel compression must not make the file's bytes depend
+    // on which tile finished first (same inputs, same file).
+    image.layer_data.encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
     let mut buf = Cursor::new(Vec::new());
     image.write().to_buffered(&mut buf).map_err(|e| RenderError::Invalid(format!("EXR encoding failed: {e}")))?;
     Ok(buf.into_inner())

@@ -122,10 +122,14 @@ pub fn write_exr(path: &Path, size: usize, data: &[f32], channels: usize) -> io:
     use exr::prelude::*;
     write_atomic(path, |tmp| {
         let res = if channels == 3 {
-            write_rgb_file(tmp, size, size, |x, y| {
+            let pixels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
                 let k = 3 * (y * size + x);
                 (data[k], data[k + 1], data[k + 2])
-            })
+            });
+            let mut image = Image::from_channels((size, size), pixels);
+            // Blocks in increasing order, so parallel compression cannot reorder the file.
+            image.layer_data.encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
+            image.write().to_file(tmp)
         } else {
             let channel = AnyChannel::new("Y", FlatSamples::F32(data.to_vec()));
             let layer = Layer::new(

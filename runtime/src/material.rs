@@ -39,16 +39,12 @@ fn sample_at(channels: &[Vec<f32>], k: usize) -> SurfaceSample {
 }
 
 impl SurfaceMaterial for ProceduralMaterial {
-    /// One hit: the JIT kernel called directly on stack buffers (no allocation, no thread
-    /// pool), since the path tracer shades one hit at a time.
+    /// One hit: the JIT kernel's single-point entry (stack buffers only, no thread pool),
+    /// since the path tracer shades one hit at a time.
     fn eval(&self, uv: [f32; 2]) -> SurfaceSample {
-        let mut columns = [[0.0f32; 1]; CHANNELS.len()];
-        let mut outputs = columns.each_mut().map(|c| &mut c[..]);
-        match self.material.kernel.forward_jit().run(&self.params, &[uv[0]], &[uv[1]], &[], &mut outputs) {
-            Ok(()) => {
-                let c = |i: usize| columns[i][0];
-                SurfaceSample { albedo: [c(0), c(1), c(2)], roughness: c(3), normal: [c(4), c(5), c(6)] }
-            }
+        let mut c = [0.0f32; CHANNELS.len()];
+        match self.material.kernel.forward_jit().run_point(&self.params, uv[0], uv[1], &mut c) {
+            Ok(()) => SurfaceSample { albedo: [c[0], c[1], c[2]], roughness: c[3], normal: [c[4], c[5], c[6]] },
             Err(_) => SHAPE_ERROR_SAMPLE,
         }
     }
