@@ -42,7 +42,7 @@ fn latency(op: Opcode) -> u32 {
         Opcode::Sqrt => 15,
         Opcode::Fma | Opcode::Fmul | Opcode::Fadd | Opcode::Fsub => 3,
         Opcode::Imul => 4,
-        Opcode::FcvtToSintSat | Opcode::FcvtFromSint => 5,
+        Opcode::X86Cvtt2dq | Opcode::FcvtToSintSat | Opcode::FcvtFromSint => 4,
         Opcode::Floor | Opcode::Nearest | Opcode::Ceil | Opcode::Trunc => 3,
         Opcode::Load => 4,
         Opcode::Fcmp | Opcode::Icmp => 2,
