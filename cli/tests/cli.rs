@@ -116,11 +116,9 @@ fn bake_refuses_out_of_range_parameters_and_writes_nothing() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-#[test]
-fn render_the_example_room_with_procedural_materials() {
-    let dir = scratch("render");
-    let image = dir.join("room.png");
-    let out = psc(&[
+/// `psc render examples/room` with the bundled assignment and lights, 1 spp, at `size`.
+fn render_example_room(size: &str, out: &Path) -> Output {
+    psc(&[
         "render",
         "examples/room",
         "--assign",
@@ -130,11 +128,18 @@ fn render_the_example_room_with_procedural_materials() {
         "--spp",
         "1",
         "--size",
-        "32x24",
+        size,
         "--quiet",
         "--out",
-        image.to_str().unwrap(),
-    ]);
+        out.to_str().unwrap(),
+    ])
+}
+
+#[test]
+fn render_the_example_room_with_procedural_materials() {
+    let dir = scratch("render");
+    let image = dir.join("room.png");
+    let out = render_example_room("32x24", &image);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let decoded = std::fs::read(&image).expect("the image was written");
     assert_eq!(&decoded[1..4], b"PNG");
@@ -143,21 +148,7 @@ fn render_the_example_room_with_procedural_materials() {
     let exrs: Vec<Vec<u8>> = (0..4)
         .map(|k| {
             let path = dir.join(format!("room{k}.exr"));
-            let out = psc(&[
-                "render",
-                "examples/room",
-                "--assign",
-                "examples/room/materials.json",
-                "--lights",
-                "examples/room/lights.json",
-                "--spp",
-                "1",
-                "--size",
-                "320x240",
-                "--quiet",
-                "--out",
-                path.to_str().unwrap(),
-            ]);
+            let out = render_example_room("320x240", &path);
             assert!(out.status.success(), "{}", text(&out.stderr));
             std::fs::read(&path).expect("the EXR was written")
         })
