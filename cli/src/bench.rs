@@ -312,31 +312,29 @@ fn print_variants(what: &str, program: &Program, size: usize, runs: usize) -> Re
         .flat_map(|opt_level| [1, 2, 4].map(move |groups| (opt_level, groups)))
         .flat_map(|(opt_level, groups)| [None, scheduled].map(move |schedule| Options { opt_level, groups, schedule }));
     for options in variants {
-        {
-            let Options { opt_level, groups, schedule } = options;
-            let k = psc_jit::compile_with(program, &options)?;
-            let mut outs = vec![vec![0.0f32; u.len()]; k.num_outputs()];
-            let t = best_of(runs, || {
-                let mut work: Vec<Vec<&mut [f32]>> = (0..u.len().div_ceil(CHUNK)).map(|_| Vec::new()).collect();
-                for col in outs.iter_mut() {
-                    for (c, piece) in col.chunks_mut(CHUNK).enumerate() {
-                        work[c].push(piece);
-                    }
+        let Options { opt_level, groups, schedule } = options;
+        let k = psc_jit::compile_with(program, &options)?;
+        let mut outs = vec![vec![0.0f32; u.len()]; k.num_outputs()];
+        let t = best_of(runs, || {
+            let mut work: Vec<Vec<&mut [f32]>> = (0..u.len().div_ceil(CHUNK)).map(|_| Vec::new()).collect();
+            for col in outs.iter_mut() {
+                for (c, piece) in col.chunks_mut(CHUNK).enumerate() {
+                    work[c].push(piece);
                 }
-                work.into_par_iter().enumerate().try_for_each(|(c, mut o)| {
-                    let r = c * CHUNK..((c + 1) * CHUNK).min(u.len());
-                    let s: Vec<&[f32]> = seeds.iter().map(|col| &col[r.clone()]).collect();
-                    k.run(&params, &u[r.clone()], &v[r], &s, &mut o)
-                })
-            })?;
-            println!(
-                "  opt_level={:<5} vectors/iter={groups} scheduled={:<5}: {:>8.1} Mtexels/s  compile {:>7} ms",
-                format!("{opt_level:?}").to_lowercase(),
-                schedule.is_some(),
-                u.len() as f64 / t.as_secs_f64() / 1e6,
-                ms(k.compile_time())
-            );
-        }
+            }
+            work.into_par_iter().enumerate().try_for_each(|(c, mut o)| {
+                let r = c * CHUNK..((c + 1) * CHUNK).min(u.len());
+                let s: Vec<&[f32]> = seeds.iter().map(|col| &col[r.clone()]).collect();
+                k.run(&params, &u[r.clone()], &v[r], &s, &mut o)
+            })
+        })?;
+        println!(
+            "  opt_level={:<5} vectors/iter={groups} scheduled={:<5}: {:>8.1} Mtexels/s  compile {:>7} ms",
+            format!("{opt_level:?}").to_lowercase(),
+            schedule.is_some(),
+            u.len() as f64 / t.as_secs_f64() / 1e6,
+            ms(k.compile_time())
+        );
     }
     Ok(())
 }

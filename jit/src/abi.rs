@@ -221,8 +221,8 @@ impl NativeKernel {
     }
 }
 
-/// Per-thread buffers reused by every call, so that evaluating a kernel (even at a single
-/// point, as the renderer does per hit) does not allocate.
+/// Per-thread buffers reused by every batch call, so that evaluating a kernel (even a batch
+/// shorter than one block) does not allocate.
 #[derive(Default)]
 struct Scratch {
     params: Vec<Lanes>,

@@ -110,10 +110,10 @@ pub fn flops_per_point(program: &Program) -> usize {
     for (op, _) in program.nodes.iter().zip(&live).filter(|(op, l)| **l && !op.is_leaf()) {
         match *op {
             Op::Sin(x) | Op::Cos(x) => {
-                if trig_operands.insert(x) {
-                    approx::sin_cos_parts(&mut counter, ());
-                }
-                approx::finish_sin_cos(&mut counter, approx::sin_cos_parts(&mut FlopCounter::default(), ()), 0);
+                let mut already_counted = FlopCounter::default();
+                let shared = if trig_operands.insert(x) { &mut counter } else { &mut already_counted };
+                let parts = approx::sin_cos_parts(shared, ());
+                approx::finish_sin_cos(&mut counter, parts, 0);
             }
             _ => eval_op(&mut counter, op, (), (), ()),
         }

@@ -121,26 +121,20 @@ pub fn write_png_gray(path: &Path, size: (u32, u32), gray: &[u8]) -> io::Result<
 pub fn write_exr(path: &Path, size: usize, data: &[f32], channels: usize) -> io::Result<()> {
     use exr::prelude::*;
     write_atomic(path, |tmp| {
-        let res = if channels == 3 {
-            let pixels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
-                let k = 3 * (y * size + x);
-                (data[k], data[k + 1], data[k + 2])
-            });
-            let mut image = Image::from_channels((size, size), pixels);
-            // Blocks in increasing order, so parallel compression cannot reorder the file.
-            image.layer_data.encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
-            image.write().to_file(tmp)
-        } else {
-            let channel = AnyChannel::new("Y", FlatSamples::F32(data.to_vec()));
-            let layer = Layer::new(
-                (size, size),
-                LayerAttributes::named("height"),
-                Encoding::SMALL_LOSSLESS,
-                AnyChannels::sort(SmallVec::from_vec(vec![channel])),
-            );
-            Image::from_layer(layer).write().to_file(tmp)
-        };
-        res.map_err(io_err)
+        if channels == 3 {
+            // The renderer's encoder: the same settings, block order fixed for reproducible bytes.
+            let rgb: Vec<[f32; 3]> = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            let bytes = psc_render::image_io::encode_exr(size, size, &rgb).map_err(io_err)?;
+            return std::fs::write(tmp, bytes);
+        }
+        let channel = AnyChannel::new("Y", FlatSamples::F32(data.to_vec()));
+        let layer = Layer::new(
+            (size, size),
+            LayerAttributes::named("height"),
+            Encoding::SMALL_LOSSLESS, // scan lines in increasing order: reproducible bytes
+            AnyChannels::sort(SmallVec::from_vec(vec![channel])),
+        );
+        Image::from_layer(layer).write().to_file(tmp).map_err(io_err)
     })
 }
 

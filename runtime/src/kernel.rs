@@ -90,11 +90,7 @@ impl Kernel {
 
     /// Compiles a kernel with its adjoint, checking the adjoint's layout against `forward`.
     pub fn with_adjoint(forward: Program, adjoint: Program) -> Result<Kernel, KernelError> {
-        let wrt = adjoint_layout(&forward, &adjoint)?;
-        let jit = psc_jit::compile(&adjoint)?;
-        let mut k = Kernel::new(forward)?;
-        k.adjoint = Some(AdjointKernel { program: adjoint, jit, wrt });
-        Ok(k)
+        Kernel::new(forward)?.with_added_adjoint(adjoint)
     }
 
     /// This kernel's forward code (shared, not recompiled) plus a compiled `adjoint`.
@@ -193,12 +189,9 @@ impl Kernel {
         let nw = adj.wrt.len();
         // Columns kept per point: forward values, d_u, d_v. d_param columns are chunk scratch.
         let mut kept = std::mem::take(&mut out.values);
-        resize_columns(&mut kept, nf, n);
-        kept.push(std::mem::take(&mut out.d_u));
-        kept.push(std::mem::take(&mut out.d_v));
-        for col in &mut kept[nf..] {
-            col.resize(n, 0.0);
-        }
+        kept.resize_with(nf, Vec::new);
+        kept.extend([std::mem::take(&mut out.d_u), std::mem::take(&mut out.d_v)]);
+        resize_columns(&mut kept, nf + 2, n);
         let work = split_columns(&mut kept, n);
         let partials: Vec<Vec<f64>> = work
             .into_par_iter()
