@@ -1,0 +1,1 @@
+//! The feature loss: a fixed, weight-free, multi-scale texture descriptor with an exact adjoint.

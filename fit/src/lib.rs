@@ -1,0 +1,14 @@
+//! `psc-fit`: fits a procedural material to every part of a room from its photos, and evaluates
+//! fitted rooms against ground truth (`psc fit`, `psc eval`).
+//!
+//! Owns: the stages of the fit, one module each, with plain data passed between them (targets
+//! from photos and G-buffers, the differentiable shading layer, losses, the optimiser, graph
+//! selection, the per-part fit), and the evaluation against `truth/`.
+//!
+//! Must never: read `truth/` outside the evaluation module (the fit sees only what a user would
+//! give it), define a second BRDF or parameter convention (it uses `psc_render::brdf` and
+//! `psc_runtime`'s parameters), or draw progress itself (the CLI does, through callbacks).
+
+#![forbid(unsafe_code)]
+
+pub mod features;
