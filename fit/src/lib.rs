@@ -11,4 +11,15 @@
 
 #![forbid(unsafe_code)]
 
+pub mod align;
+pub mod error;
 pub mod features;
+pub mod layer;
+pub mod lighting;
+pub mod loss;
+pub mod observe;
+pub mod shading;
+pub mod targets;
+pub mod uvmap;
+
+pub use error::FitError;
