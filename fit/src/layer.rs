@@ -118,6 +118,14 @@ pub struct Workspace {
     pub image: Vec<[f32; 3]>,
 }
 
+impl Workspace {
+    /// The mean of forward channel `channel` over every sample of the last render.
+    pub fn channel_mean(&self, channel: usize) -> f32 {
+        let col = &self.columns[channel];
+        (col.iter().map(|&x| f64::from(x)).sum::<f64>() / col.len().max(1) as f64) as f32
+    }
+}
+
 /// Pixels per parallel work item; fixed so that sums are identical for any thread count.
 const PIXEL_CHUNK: usize = 512;
 
@@ -309,6 +317,42 @@ impl PartView {
             }
         }
         ws.first.push(ws.mesh_uv.len() as u32);
+    }
+
+    /// The albedo scale that colour-matches the last render of `state` (in `ws`) to the photo:
+    /// per channel, the median of the photo over the median of the render (linear values).
+    pub fn matched_albedo_scale(&self, state: &MaterialState, ws: &Workspace) -> [f32; 3] {
+        let mut photo: [Vec<f32>; 3] = Default::default();
+        let mut render: [Vec<f32>; 3] = Default::default();
+        for (px, l) in self.pixels.iter().zip(&ws.linear) {
+            let t = self.target_linear[px.crop_index as usize];
+            for c in 0..3 {
+                photo[c].push(t[c] / self.exposure);
+                render[c].push(l[c]);
+            }
+        }
+        [0, 1, 2].map(|c| {
+            let (p, r) = (crate::lighting::median(&mut photo[c]), crate::lighting::median(&mut render[c]));
+            let s = if r > 1e-8 { state.albedo_scale[c] * p / r } else { state.albedo_scale[c] };
+            if s.is_finite() {
+                s.clamp(1.0 / 64.0, 64.0)
+            } else {
+                state.albedo_scale[c]
+            }
+        })
+    }
+
+    /// Turns the last render of `state` in `ws` into the render with albedo scale `scale`
+    /// without evaluating the graph again (the diffuse term is linear in the scale).
+    pub fn rescale(&self, state: &MaterialState, scale: [f32; 3], ws: &mut Workspace) {
+        for (px, l) in self.pixels.iter().zip(ws.linear.iter_mut()) {
+            let (spec, _) = px.light.specular(state.roughness);
+            for c in 0..3 {
+                let diffuse = if state.albedo_scale[c] > 0.0 { (l[c] - spec[c]) / state.albedo_scale[c] } else { 0.0 };
+                l[c] = scale[c] * diffuse + spec[c];
+            }
+            ws.image[px.crop_index as usize] = l.map(|x| linear_to_srgb(self.exposure * x));
+        }
     }
 
     /// Samples the layer takes for `state` (for reports and budgets).
