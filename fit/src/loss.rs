@@ -4,6 +4,7 @@
 
 use serde::Serialize;
 
+use crate::error::FitError;
 use crate::features::{Descriptor, FeatureConfig, FeatureLoss, Region, Scratch};
 use crate::layer::PartView;
 
@@ -67,18 +68,23 @@ pub struct PartLoss {
 }
 
 impl PartLoss {
-    pub fn new(view: &PartView, weights: LossWeights, config: &FeatureConfig, scratch: &mut Scratch) -> PartLoss {
+    pub fn new(
+        view: &PartView,
+        weights: LossWeights,
+        config: &FeatureConfig,
+        scratch: &mut Scratch,
+    ) -> Result<PartLoss, FitError> {
         let region = Region { width: view.width, height: view.height, weight: view.weight.clone() };
-        let features = FeatureLoss::new(config, &region);
-        let target_features = features.describe(&view.target, scratch);
-        PartLoss {
+        let features = FeatureLoss::new(config, &region).map_err(feature_error)?;
+        let target_features = features.describe(&view.target, scratch).map_err(feature_error)?;
+        Ok(PartLoss {
             weights,
             total_weight: view.total_weight().max(1e-6),
             weight: view.weight.clone(),
             target: Moments::of(&view.target, &view.weight),
             features,
             target_features,
-        }
+        })
     }
 
     pub fn target_moments(&self) -> Moments {
@@ -88,8 +94,12 @@ impl PartLoss {
     pub fn value(&self, image: &[[f32; 3]], scratch: &mut Scratch) -> LossValue {
         let m = Moments::of(image, &self.weight);
         let statistics = self.statistics(&m);
-        let features =
-            if self.weights.features > 0.0 { self.features.loss(image, &self.target_features, scratch) } else { 0.0 };
+        let features = if self.weights.features > 0.0 {
+            // The image and target come from this loss's own region: a mismatch is a bug.
+            self.features.loss(image, &self.target_features, scratch).unwrap_or(f32::INFINITY)
+        } else {
+            0.0
+        };
         self.combine(statistics, features)
     }
 
@@ -98,7 +108,7 @@ impl PartLoss {
         grad.clear();
         grad.resize(image.len(), [0.0; 3]);
         let features = if self.weights.features > 0.0 {
-            let f = self.features.loss_and_grad(image, &self.target_features, scratch, grad);
+            let f = self.features.loss_and_grad(image, &self.target_features, scratch, grad).unwrap_or(f32::INFINITY);
             grad.iter_mut().for_each(|g| *g = g.map(|x| x * self.weights.features));
             f
         } else {
@@ -144,4 +154,8 @@ fn sign(x: f32) -> f32 {
     } else {
         0.0
     }
+}
+
+fn feature_error(e: crate::features::FeatureError) -> FitError {
+    FitError::Input(format!("feature loss: {e}"))
 }

@@ -376,8 +376,8 @@ fn fit_one_part(
             .expect("the search view of the same pixels exists");
     result.pixels.fitted = fit_view.pixels.len();
     let mut scratch = Scratch::default();
-    let fit_loss = PartLoss::new(&fit_view, options.loss, &options.features, &mut scratch);
-    let search_loss = PartLoss::new(&search_view, options.loss, &options.features, &mut scratch);
+    let fit_loss = PartLoss::new(&fit_view, options.loss, &options.features, &mut scratch)?;
+    let search_loss = PartLoss::new(&search_view, options.loss, &options.features, &mut scratch)?;
     result.timings.targets = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
