@@ -390,6 +390,9 @@ fn fit_one_part(
         }
     };
     result.timings.selection = started.elapsed().as_secs_f64();
+    if let (Some(dir), Some(sel)) = (std::env::var_os("PSC_FIT_DUMP"), &selection) {
+        debug_dump(std::path::Path::new(&dir), &name, homogeneous, library, &search_view, sel, colour, options)?;
+    }
     let started = Instant::now();
     let graph_name = match (forced, &selection) {
         (Some(g), _) => g.clone(),
@@ -461,4 +464,38 @@ fn flat_colour(
     let white = flat_state(homogeneous, [1.0; 3], DEFAULT_ROUGHNESS);
     view.render(homogeneous, &white, Sampling { density: 0.0, max_per_axis: 1 }, ws)?;
     Ok(view.matched_albedo_scale(&white, ws))
+}
+
+/// Debugging aid (`PSC_FIT_DUMP=dir`): the search view's photo, a homogeneous render at the
+/// part's colour and the best exemplar, side by side.
+#[allow(clippy::too_many_arguments)]
+fn debug_dump(
+    dir: &std::path::Path,
+    name: &str,
+    homogeneous: &psc_runtime::library::Material,
+    library: &Library,
+    view: &PartView,
+    selection: &crate::select::Selection,
+    colour: [f32; 3],
+    options: &FitOptions,
+) -> Result<(), FitError> {
+    let mut ws = Workspace::default();
+    let (w, h) = (view.width, view.height);
+    let mut out = vec![[0.0f32; 3]; 3 * w * h];
+    let mut put = |k: usize, img: &[[f32; 3]]| {
+        for y in 0..h {
+            for x in 0..w {
+                out[y * 3 * w + k * w + x] = img[y * w + x].map(psc_render::image_io::srgb_to_linear);
+            }
+        }
+    };
+    put(0, &view.target);
+    view.render(homogeneous, &flat_state(homogeneous, colour, DEFAULT_ROUGHNESS), options.fit.search_sampling, &mut ws)?;
+    put(1, &ws.image);
+    let best = &selection.exemplars[0];
+    view.render(&library.materials[best.graph], &best.state, options.fit.search_sampling, &mut ws)?;
+    put(2, &ws.image);
+    std::fs::create_dir_all(dir).map_err(|e| FitError::Output(e.to_string()))?;
+    psc_render::image_io::write_rgb(&dir.join(format!("{name}.png")), 3 * w, h, &out)?;
+    Ok(())
 }
