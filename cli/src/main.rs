@@ -7,6 +7,7 @@
 mod bake;
 mod bench;
 mod compile;
+mod fit;
 mod library;
 mod render;
 
@@ -33,6 +34,8 @@ enum Command {
     Library(library::Args),
     /// Render a scene: path-traced images, G-buffers, per-pixel light grids.
     Render(render::Args),
+    /// Fit a procedural material to every part of a scene from its photos.
+    Fit(fit::Args),
 }
 
 /// An error already worth showing to the user as is.
@@ -66,6 +69,7 @@ fn main() -> ExitCode {
         Command::Bake(args) => bake::run(args),
         Command::Library(args) => library::run(args),
         Command::Render(args) => render::run(args),
+        Command::Fit(args) => fit::run(args),
     };
     match result {
         Ok(code) => code,
