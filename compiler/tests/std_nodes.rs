@@ -24,9 +24,15 @@ const NOT_PERIODIC_BY_DESIGN: &[(&str, &str)] = &[
     ("lattice_rand2", "expects already wrapped integer lattice coordinates"),
     ("grad_dot", "expects already wrapped integer lattice coordinates"),
     ("rehash", "a hash of a continuous value: the rounding at u + 1 changes it"),
+    ("quarter_turn", "returns a position: periodic patterns of it stay periodic"),
     ("transform2d", "documented: periodic only for quarter turns and integer scales"),
     ("wood_grain", "takes board-local coordinates"),
     ("wood_pores", "takes board-local coordinates (lattice period 4096)"),
+    ("knot", "takes board-local coordinates"),
+    ("ray_flecks", "takes board-local coordinates (lattice period 4096)"),
+    ("flower", "takes motif-local coordinates"),
+    ("leaf", "takes motif-local coordinates"),
+    ("damask", "takes motif-local coordinates"),
 ];
 
 /// Fns whose tiling fails although they are meant to tile: reported to the library owner.
