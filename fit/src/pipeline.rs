@@ -490,7 +490,12 @@ fn debug_dump(
         }
     };
     put(0, &view.target);
-    view.render(homogeneous, &flat_state(homogeneous, colour, DEFAULT_ROUGHNESS), options.fit.search_sampling, &mut ws)?;
+    view.render(
+        homogeneous,
+        &flat_state(homogeneous, colour, DEFAULT_ROUGHNESS),
+        options.fit.search_sampling,
+        &mut ws,
+    )?;
     put(1, &ws.image);
     let best = &selection.exemplars[0];
     view.render(&library.materials[best.graph], &best.state, options.fit.search_sampling, &mut ws)?;
