@@ -1,9 +1,9 @@
 //! `psc bench`: JIT against interpreter, forward and forward+adjoint, on a size×size grid.
 //!
-//! Until the graph front end is wired in, it benchmarks a built-in synthetic workload (a
-//! seeded random material-like program of about `--synthetic` ops). [`bench_program`] is the
-//! entry point for real graphs. Timings are the best of `--runs` runs (a shared machine is
-//! noisy); both the JIT and the interpreter run on all rayon threads over the same chunks.
+//! Benchmarks the graphs of the given files at their defaults or, without any, a seeded
+//! synthetic material-like program of about `--synthetic` ops. Timings are the best of
+//! `--runs` runs (a shared machine is noisy); both the JIT and the interpreter run on all rayon
+//! threads over the same chunks.
 
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -86,18 +86,6 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         print_variants("forward+adjoint", &adjoint, args.size, args.runs)?;
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// Benchmarks one program (and its adjoint, if given) with 3 runs per measurement: the entry
-/// point for real graphs once the front end is wired into `psc bench`.
-#[allow(dead_code)]
-pub fn bench_program(
-    name: &str,
-    forward: &Program,
-    adjoint: Option<&Program>,
-    size: usize,
-) -> Result<BenchRow, Failure> {
-    bench_program_runs(name, forward, adjoint, &bench_params(forward.num_params), size, 3)
 }
 
 /// Every graph of the given files at its default parameters, adjoint over its continuous ones.

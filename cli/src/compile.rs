@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use clap::ValueEnum;
-use psc_compiler::graph::ParamKind;
+use psc_compiler::ParamKind;
 use psc_compiler::{compile_files, CompiledGraph, Options};
 use serde_json::json;
 

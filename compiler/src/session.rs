@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use crate::check;
 use crate::diag::{Diagnostic, FileId, SourceMap};
-use crate::graph::CompiledGraph;
+use crate::compiled::CompiledGraph;
 use crate::lower;
 use crate::module::{ModuleId, ModuleSet};
 

@@ -15,7 +15,7 @@ use psc_grammar::ast::{self, GraphMember, Span};
 
 use crate::diag::{Diagnostic, FileId};
 use crate::diff::forward::{ForwardDiff, Wrt};
-use crate::graph::{CompileStats, CompiledGraph, GraphInfo, ParamInfo, ParamKind, CHANNELS};
+use crate::compiled::{CompileStats, CompiledGraph, GraphInfo, ParamInfo, ParamKind, CHANNELS};
 use crate::ir::{Builder, NodeId, Output};
 use crate::module::{ItemRef, ModuleId, ModuleSet};
 
