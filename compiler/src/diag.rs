@@ -37,22 +37,10 @@ impl SourceMap {
         self.files.get(file.0).map(|f| f.source().as_str()).unwrap_or("")
     }
 
-    /// 1-based line and column (in characters) of a byte offset.
+    /// 1-based line and column (in characters) of a byte offset ([`psc_grammar::line_col`]).
     pub fn line_col(&self, file: FileId, offset: usize) -> (usize, usize) {
-        let text = self.text(file);
-        let offset = offset.min(text.len());
-        let before = &text[..floor_char_boundary(text, offset)];
-        let line = before.matches('\n').count() + 1;
-        let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-        (line, col)
+        psc_grammar::line_col(self.text(file), offset)
     }
-}
-
-fn floor_char_boundary(s: &str, mut i: usize) -> usize {
-    while i > 0 && !s.is_char_boundary(i) {
-        i -= 1;
-    }
-    i
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -151,8 +139,8 @@ impl Diagnostic {
     fn clamped(&self, sources: &SourceMap) -> Diagnostic {
         let clamp = |file: FileId, span: Span| {
             let text = sources.text(file);
-            let start = floor_char_boundary(text, span.start.min(text.len()));
-            let end = floor_char_boundary(text, span.end.min(text.len())).max(start);
+            let start = text.floor_char_boundary(span.start);
+            let end = text.floor_char_boundary(span.end).max(start);
             Span::new(start, end)
         };
         let mut d = self.clone();
