@@ -12,6 +12,8 @@
 //! [`ir::Program`]) → [`compiled::CompiledGraph::adjoint`]. (`lower` is the AST → IR pass; the
 //! pest → AST step before it is the grammar crate's `ast_build`.)
 
+#![forbid(unsafe_code)]
+
 pub mod builtins;
 pub mod check;
 pub mod compiled;

@@ -11,6 +11,8 @@
 //! returned as values; rendering them is the CLI's job). It must never panic, hang or
 //! overflow the stack, whatever the input.
 
+#![forbid(unsafe_code)]
+
 pub mod ast;
 mod ast_build;
 mod error;
