@@ -8,6 +8,7 @@
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
+use psc_base::SplitMix64;
 use psc_compiler::diff::reverse;
 use psc_compiler::interp;
 use psc_compiler::ir::{Builder, NodeId, Output, Program};
@@ -327,25 +328,6 @@ fn print_variants(what: &str, program: &Program, size: usize, runs: usize) -> Re
     Ok(())
 }
 
-/// splitmix64: a small deterministic generator, so workloads are reproducible by seed.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-    fn unit(&mut self) -> f32 {
-        (self.next() >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
 /// A seeded random material-like program of about `ops` IR ops: mostly arithmetic, with
 /// the mix of transcendentals, comparisons, selects and hashes procedural graphs use; every
 /// argument is shaped so values stay finite (exp of negatives, log of 1 + x², …).
@@ -362,19 +344,19 @@ pub fn synthetic_program(ops: usize, seed: u64) -> Program {
 }
 
 fn synthetic_attempt(raw: usize, seed: u64) -> Program {
-    let mut r = Rng(seed ^ 0x5053_4342_454E_4348);
+    let mut r = SplitMix64::new(seed ^ 0x5053_4342_454E_4348);
     let mut b = Builder::new();
     let mut pool: Vec<NodeId> = vec![b.u(), b.v()];
     for p in 0..8 {
         pool.push(b.param(p));
     }
     for _ in 0..4 {
-        let c = b.constant((r.unit() * 8.0 - 4.0).round() / 2.0 + 0.25);
+        let c = b.constant((r.next_f32() * 8.0 - 4.0).round() / 2.0 + 0.25);
         pool.push(c);
     }
     let leaves = b.len();
     // Prefer recent nodes so the program has depth, like chained graph nodes.
-    let pick = |r: &mut Rng, pool: &[NodeId]| pool[pool.len() - 1 - r.below(pool.len().min(24))];
+    let pick = |r: &mut SplitMix64, pool: &[NodeId]| pool[pool.len() - 1 - r.below(pool.len().min(24))];
     let mut guard = 0;
     while b.len() - leaves < raw && guard < raw * 20 {
         guard += 1;

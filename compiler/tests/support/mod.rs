@@ -7,6 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
+use psc_base::SplitMix64;
 use psc_compiler::interp::{eval, Batch};
 use psc_compiler::ir::{semantics, Op, Program};
 use psc_compiler::{compile_files, CompiledGraph, GraphInfo, Options, ParamKind, CHANNELS};
@@ -58,15 +59,15 @@ pub fn env_usize(name: &str, default: usize) -> usize {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Deterministic randomness (no dependency, reproducible across runs)
+// Deterministic randomness (reproducible across runs)
 
-/// SplitMix64.
+/// [`SplitMix64`] with the seeding and ranges these tests use.
 #[derive(Clone, Debug)]
-pub struct Rng(u64);
+pub struct Rng(SplitMix64);
 
 impl Rng {
     pub fn new(seed: u64) -> Self {
-        Rng(seed ^ 0x5DEE_CE66_D1CE_4E5B)
+        Rng(SplitMix64::new(seed ^ 0x5DEE_CE66_D1CE_4E5B))
     }
     /// A generator seeded from a name (a graph or fn), so adding graphs does not reshuffle
     /// the samples of the others.
@@ -77,22 +78,15 @@ impl Rng {
         }
         Rng::new(h)
     }
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
     /// Uniform in [0, 1).
     pub fn unit(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+        self.0.next_f32()
     }
     pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
         lo + (hi - lo) * self.unit()
     }
     pub fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
+        self.0.below(n)
     }
 }
 

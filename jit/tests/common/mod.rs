@@ -1,23 +1,23 @@
 //! Shared helpers for the JIT tests: random programs, random points, comparisons.
 #![allow(dead_code)]
 
+use psc_base::SplitMix64;
 use psc_compiler::ir::{Builder, NodeId, Op, Output, Program};
 
-/// A tiny deterministic PRNG (splitmix64), so point sets are reproducible from a proptest seed.
-pub struct Rng(pub u64);
+/// [`SplitMix64`] with the ranges these tests draw from, so point sets are reproducible from
+/// a proptest seed.
+pub struct Rng(SplitMix64);
 
 impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Rng(SplitMix64::new(seed))
+    }
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
     /// Uniform in [lo, hi).
     pub fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
-        let t = (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
-        lo + (hi - lo) * t
+        lo + (hi - lo) * self.0.next_f32()
     }
     /// A mix of ordinary, large, tiny and special values.
     pub fn nasty(&mut self) -> f32 {
