@@ -11,6 +11,7 @@ use std::time::{Duration, Instant};
 use psc_base::SplitMix64;
 use psc_compiler::diff::reverse;
 use psc_compiler::interp;
+use psc_compiler::Adjoint;
 use psc_compiler::ir::{Builder, NodeId, Output, Program};
 use psc_jit::{CompiledKernel, OptLevel, Options};
 use psc_runtime::kernel::{grid_uv, Gradients, Kernel, CHUNK};
@@ -84,7 +85,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     print_table(&[row], args.size);
     if args.variants {
         print_variants("forward", &forward, args.size, args.runs)?;
-        print_variants("forward+adjoint", &adjoint, args.size, args.runs)?;
+        print_variants("forward+adjoint", &adjoint.program, args.size, args.runs)?;
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -104,7 +105,7 @@ fn bench_graphs(args: &Args) -> Result<ExitCode, Failure> {
         rows.push(bench_program_runs(&g.info.name, &g.forward, Some(&adjoint), &params, args.size, args.runs)?);
         if args.variants {
             print_variants(&format!("{} forward", g.info.name), &g.forward, args.size, args.runs)?;
-            print_variants(&format!("{} forward+adjoint", g.info.name), &adjoint, args.size, args.runs)?;
+            print_variants(&format!("{} forward+adjoint", g.info.name), &adjoint.program, args.size, args.runs)?;
         }
         eprintln!("benchmarked {}", g.info.name);
     }
@@ -115,7 +116,7 @@ fn bench_graphs(args: &Args) -> Result<ExitCode, Failure> {
 fn bench_program_runs(
     name: &str,
     forward: &Program,
-    adjoint: Option<&Program>,
+    adjoint: Option<&Adjoint>,
     params: &[f32],
     size: usize,
     runs: usize,
@@ -152,7 +153,7 @@ fn bench_program_runs(
         if let Some(adj) = adjoint {
             best[2] = best[2].min(time(|| kernel.adjoint_into(params, &u, &v, &seed_refs, &mut gradients))?);
             best[3] = best[3].min(time(|| {
-                interp_chunked(adj, params, &u, &v, &seed_refs);
+                interp_chunked(&adj.program, params, &u, &v, &seed_refs);
                 Ok::<_, Failure>(())
             })?);
         }
@@ -165,7 +166,7 @@ fn bench_program_runs(
     Ok(BenchRow {
         name: name.to_string(),
         ops: forward.op_count(),
-        adjoint_ops: adjoint.map(Program::op_count),
+        adjoint_ops: adjoint.map(|a| a.program.op_count()),
         compile: kernel.forward_jit().compile_time(),
         adjoint_compile: kernel.adjoint_jit().map(CompiledKernel::compile_time),
         jit_forward,

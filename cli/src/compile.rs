@@ -74,7 +74,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         .iter()
         .map(|g| {
             let t = Instant::now();
-            let adj = g.adjoint();
+            let adj = g.adjoint().program;
             (adj, t.elapsed())
         })
         .collect();

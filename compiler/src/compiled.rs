@@ -1,14 +1,11 @@
-//! A compiled graph: its public description (parameters, slots, channels) and forward program.
+//! A compiled graph: its public description (parameters, slots) and forward program, whose
+//! outputs are the [`crate::Channel`]s in order.
 
 use std::path::PathBuf;
 use std::time::Duration;
 
+use crate::diff::reverse::Adjoint;
 use crate::ir::Program;
-
-/// The forward program's outputs, always in this order. `height` is 0 for graphs that give a
-/// `normal` directly; `metallic` is 0 unless the graph sets it.
-pub const CHANNELS: [&str; 9] =
-    ["albedo.r", "albedo.g", "albedo.b", "roughness", "normal.x", "normal.y", "normal.z", "height", "metallic"];
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum ParamKind {
@@ -102,14 +99,15 @@ pub struct CompileStats {
 #[derive(Clone, Debug)]
 pub struct CompiledGraph {
     pub info: GraphInfo,
+    /// Outputs: [`crate::Channel::ALL`], in order.
     pub forward: Program,
     pub stats: CompileStats,
 }
 
 impl CompiledGraph {
-    /// The fused forward + adjoint program for the continuous parameters (see
-    /// [`crate::diff::reverse::adjoint`] for its layout).
-    pub fn adjoint(&self) -> Program {
+    /// The fused forward + adjoint program for the continuous parameters, with its layout
+    /// (see [`crate::diff::reverse::AdjointLayout`]).
+    pub fn adjoint(&self) -> Adjoint {
         crate::diff::reverse::adjoint(&self.forward, &self.info.continuous_slots())
     }
 }

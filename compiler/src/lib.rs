@@ -15,6 +15,7 @@
 #![forbid(unsafe_code)]
 
 pub mod builtins;
+pub mod channel;
 pub mod check;
 pub mod compiled;
 pub mod diag;
@@ -26,5 +27,7 @@ pub mod module;
 pub mod session;
 pub mod types;
 
-pub use compiled::{CompiledGraph, GraphInfo, ParamInfo, ParamKind, CHANNELS};
+pub use channel::Channel;
+pub use compiled::{CompiledGraph, GraphInfo, ParamInfo, ParamKind};
+pub use diff::reverse::{Adjoint, AdjointLayout};
 pub use session::{compile_files, compile_text, find_sources, CompileOutput, Options};

@@ -60,13 +60,16 @@ fn forward_and_adjoint_programs_of_every_graph_keep_the_ir_invariants() {
     let (mut forward_ops, mut adjoint_ops) = (0, 0);
     for g in &graphs {
         let adjoint = g.adjoint();
+        adjoint.layout.check(&g.forward, &adjoint.program).unwrap_or_else(|e| panic!("{}: {e}", g.info.name));
+        assert_eq!(adjoint.layout.wrt(), g.info.continuous_slots(), "{}", g.info.name);
+        let adjoint = adjoint.program;
         for (kind, p) in [("forward", &g.forward), ("adjoint", &adjoint)] {
             if let Err(e) = check_invariants(p) {
                 failures.push(format!("{} {kind}: {e}", g.info.name));
             }
         }
         assert_eq!(g.forward.num_seeds, 0);
-        assert_eq!(adjoint.num_seeds, psc_compiler::CHANNELS.len(), "{}: one seed per channel", g.info.name);
+        assert_eq!(adjoint.num_seeds, psc_compiler::Channel::COUNT, "{}: one seed per channel", g.info.name);
         assert_eq!(g.stats.forward_ops, g.forward.op_count(), "{}", g.info.name);
         assert!(g.stats.nodes_before_dce >= g.forward.nodes.len(), "{}", g.info.name);
         forward_ops += g.forward.op_count();
@@ -159,7 +162,7 @@ fn a_subexpression_written_twice_costs_the_same_as_written_once() {
             o.forward.op_count(),
             "writing a subexpression twice costs extra:\n{twice}\n{once}"
         );
-        assert_eq!(t.adjoint().op_count(), o.adjoint().op_count(), "adjoints differ in size:\n{twice}\n{once}");
+        assert_eq!(t.adjoint().program.op_count(), o.adjoint().program.op_count(), "adjoints differ in size:\n{twice}\n{once}");
         // And the repeated form did request more nodes: the sharing was the builder's work.
         assert!(t.stats.requested_nodes > o.stats.requested_nodes, "{twice}");
         check_invariants(&t.forward).unwrap();

@@ -3,6 +3,7 @@
 
 use psc_compiler::diff::reverse;
 use psc_compiler::ir::{Builder, NodeId, Output, Program};
+use psc_compiler::{Adjoint, AdjointLayout};
 use psc_runtime::kernel::{grid_uv, Gradients, Kernel, KernelError, CHUNK};
 
 fn pool(k: usize) -> rayon::ThreadPool {
@@ -150,7 +151,8 @@ fn adjoint_matches_central_differences_of_the_jit_forward() {
 }
 
 /// A hand-written adjoint of f0 = p0 sin(u) + p1 v², f1 = p1 u, checking the plumbing
-/// (seed routing, output order, slot mapping, per-chunk sums) independently of diff::reverse.
+/// (seed routing, the layout's output order and slot mapping, per-chunk sums) independently of
+/// diff::reverse.
 #[test]
 fn hand_made_adjoint_plumbing() {
     let mut b = Builder::new();
@@ -177,14 +179,18 @@ fn hand_made_adjoint_plumbing() {
     let dp1b = b.mul(s1, u);
     let dp1 = b.add(dp1a, dp1b);
     let dp0 = b.mul(s0, su);
-    let adj = b.finish(vec![
+    // The names of the gradient outputs are for dumps only: the layout says what they are.
+    let program = b.finish(vec![
         Output { name: "f0".into(), node: f0 },
         Output { name: "f1".into(), node: f1 },
-        Output { name: "d_u".into(), node: du },
-        Output { name: "d_v".into(), node: dv },
-        Output { name: "d_param1".into(), node: dp1 },
-        Output { name: "d_param0".into(), node: dp0 },
+        Output { name: "grad u".into(), node: du },
+        Output { name: "grad v".into(), node: dv },
+        Output { name: "grad p1".into(), node: dp1 },
+        Output { name: "grad p0".into(), node: dp0 },
     ]);
+    let adj = Adjoint { program, layout: AdjointLayout::new(2, vec![1, 0]) };
+    let wrong_slots = Adjoint { layout: AdjointLayout::new(2, vec![1]), ..adj.clone() };
+    assert!(matches!(Kernel::with_adjoint(fwd.clone(), wrong_slots), Err(KernelError::BadAdjoint(_))));
     let k = Kernel::with_adjoint(fwd, adj).unwrap();
     assert_eq!(k.wrt_params(), &[1, 0]);
     let n = 2 * CHUNK + 5;
@@ -213,7 +219,7 @@ fn shapes_are_checked_not_panicked() {
     assert!(matches!(k.adjoint(&p, &[0.5], &[0.5], &[]), Err(KernelError::NoAdjoint)));
     let bad = reverse::adjoint(&fwd, &[1]);
     let mut renamed = bad.clone();
-    renamed.outputs[0].name = "other".into();
+    renamed.program.outputs[0].name = "other".into();
     assert!(matches!(Kernel::with_adjoint(fwd.clone(), renamed), Err(KernelError::BadAdjoint(_))));
     let k = Kernel::with_adjoint(fwd, bad).unwrap();
     assert!(matches!(k.adjoint(&p, &[0.5], &[0.5], &[&[1.0], &[1.0]]), Err(KernelError::Shape(_))));

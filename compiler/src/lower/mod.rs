@@ -15,7 +15,8 @@ use psc_grammar::ast::{self, GraphMember, Span};
 
 use crate::diag::{Diagnostic, FileId};
 use crate::diff::forward::{ForwardDiff, Wrt};
-use crate::compiled::{CompileStats, CompiledGraph, GraphInfo, ParamInfo, ParamKind, CHANNELS};
+use crate::channel::Channel;
+use crate::compiled::{CompileStats, CompiledGraph, GraphInfo, ParamInfo, ParamKind};
 use crate::ir::{Builder, NodeId, Output};
 use crate::module::{ItemRef, ModuleId, ModuleSet};
 
@@ -205,20 +206,20 @@ pub fn lower_graph(set: &ModuleSet, module: ModuleId, g: &ast::GraphDef) -> Resu
     let albedo = outs.get("albedo").cloned().unwrap_or(Value::Num(vec![zero; 3]));
     let roughness = outs.get("roughness").cloned().unwrap_or(Value::scalar(zero));
     let metallic = outs.get("metallic").cloned().unwrap_or(Value::scalar(zero));
-    let nodes = [
-        albedo.comp(0),
-        albedo.comp(1),
-        albedo.comp(2),
-        roughness.comp(0),
-        normal.comp(0),
-        normal.comp(1),
-        normal.comp(2),
-        height.comp(0),
-        metallic.comp(0),
-    ];
+    let node_of = |c: Channel| match c {
+        Channel::AlbedoR => albedo.comp(0),
+        Channel::AlbedoG => albedo.comp(1),
+        Channel::AlbedoB => albedo.comp(2),
+        Channel::Roughness => roughness.comp(0),
+        Channel::NormalX => normal.comp(0),
+        Channel::NormalY => normal.comp(1),
+        Channel::NormalZ => normal.comp(2),
+        Channel::Height => height.comp(0),
+        Channel::Metallic => metallic.comp(0),
+    };
     l.check_size(g.span)?;
     let requested = l.b.requested();
-    let outputs = CHANNELS.iter().zip(nodes).map(|(name, node)| Output { name: name.to_string(), node }).collect();
+    let outputs = Channel::ALL.into_iter().map(|c| Output { name: c.name().into(), node: node_of(c) }).collect();
     let mut forward = l.b.finish(outputs);
     let nodes_before_dce = forward.nodes.len();
     forward.eliminate_dead_code();
