@@ -92,10 +92,10 @@ struct Coverage {
 /// Forward mode against finite differences, then reverse mode against forward mode, for every
 /// output and every variable, at each point.
 fn check_program(program: &Program, points: &[(Point, [f32; 3])]) -> Result<Coverage, String> {
-    program.validate()?;
+    program.validate().map_err(|e| e.to_string())?;
     let forward_derivatives: Vec<Program> = ALL_WRT.iter().map(|&w| derivative_program(program, w)).collect();
     let fused = adjoint(program, &[0, 1, 2]);
-    fused.program.validate()?;
+    fused.program.validate().map_err(|e| e.to_string())?;
     fused.layout.check(program, &fused.program)?;
     let (layout, fused) = (fused.layout, fused.program);
     let outputs = program.outputs.len();
@@ -195,8 +195,9 @@ proptest! {
             outputs.push(Output { name: "dvdu".into(), node: dvdu });
             outputs.push(Output { name: "dudv".into(), node: dudv });
         }
-        let mixed = b.finish(outputs);
-        mixed.validate().map_err(TestCaseError::fail)?;
+        let mut mixed = b.finish(outputs);
+        mixed.eliminate_dead_code();
+        mixed.validate().map_err(|e| TestCaseError::fail(e.to_string()))?;
         let values = at.eval(&mixed, &[]);
         for pair in values.chunks(2) {
             let (a, c) = (pair[0], pair[1]);

@@ -107,7 +107,7 @@ pub fn compile(program: &Program) -> Result<CompiledKernel, JitError> {
 /// Compiles `program` with explicit code generation options.
 pub fn compile_with(program: &Program, options: &Options) -> Result<CompiledKernel, JitError> {
     let start = Instant::now();
-    program.validate().map_err(JitError::InvalidProgram)?;
+    program.check_well_formed().map_err(|e| JitError::InvalidProgram(e.to_string()))?;
     let built = codegen::build(program, options)?;
     let native = abi::NativeKernel::finalize(
         built.module,

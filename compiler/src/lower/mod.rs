@@ -223,7 +223,11 @@ pub fn lower_graph(set: &ModuleSet, module: ModuleId, g: &ast::GraphDef) -> Resu
     let mut forward = l.b.finish(outputs);
     let nodes_before_dce = forward.nodes.len();
     forward.eliminate_dead_code();
-    debug_assert_eq!(forward.validate(), Ok(()));
+    // Cheap next to lowering (one hash per node), and what every consumer relies on.
+    if let Err(e) = forward.validate() {
+        let message = format!("internal compiler error: graph `{}` lowered to an invalid program: {e}", g.name.name);
+        return Err(Box::new(Diagnostic::error(l.file, g.name.span, message).with_hint("please report this with the input file")));
+    }
     let module_ref = set.module(module);
     Ok(CompiledGraph {
         info: GraphInfo {
