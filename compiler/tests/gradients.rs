@@ -230,7 +230,7 @@ fn random_programs_are_mostly_comparable_and_use_every_op() {
     eprintln!("compared {agreed} ({agreed_non_zero} non-zero), skipped {skipped}");
     assert!(share > 0.5, "only {agreed} of {} derivatives were comparable", agreed + skipped);
     assert!(agreed_non_zero > 1000, "only {agreed_non_zero} of {agreed} compared derivatives are non-zero");
-    for kind in OP_KINDS {
+    for kind in OP_KINDS.iter() {
         assert!(kinds_seen.contains(kind), "no compared program used `{kind}`");
     }
 }

@@ -138,15 +138,7 @@ impl Kernel {
     /// [`Kernel::eval`] into `cols`, resized to one column of `u.len()` per output; columns
     /// already that long are overwritten in place, without allocating.
     pub fn eval_into(&self, params: &[f32], u: &[f32], v: &[f32], cols: &mut Vec<Vec<f32>>) -> Result<(), KernelError> {
-        check_points(u, v)?;
-        let n = u.len();
-        resize_columns(cols, self.forward_jit.num_outputs(), n);
-        let work = split_columns(cols, n);
-        work.into_par_iter().enumerate().try_for_each(|(c, mut outs)| {
-            let r = chunk_range(c, n);
-            self.forward_jit.run(params, &u[r.clone()], &v[r], &[], &mut outs)
-        })?;
-        Ok(())
+        run_chunked(&self.forward_jit, params, u, v, &[], cols)
     }
 
     /// Forward outputs at the texel centres of a `w`×`h` image, row-major, each column
@@ -241,6 +233,41 @@ pub fn grid_uv(w: usize, h: usize) -> Result<(Vec<f32>, Vec<f32>), KernelError> 
         }
     }
     Ok((u, v))
+}
+
+/// The fixed chunks a batch of `n` points is split into, as parallel work: [`CHUNK`] points
+/// each, the last one shorter. The same for any thread count, which is what makes results
+/// independent of it; benchmarks and baselines (the interpreter) use it to run over the same
+/// chunks as kernels do.
+pub fn chunk_ranges(n: usize) -> impl IndexedParallelIterator<Item = std::ops::Range<usize>> {
+    (0..n.div_ceil(CHUNK)).into_par_iter().map(move |c| chunk_range(c, n))
+}
+
+/// Runs any compiled kernel over the chunks of a batch, in parallel: `seeds` (one column per
+/// seed the kernel reads, each as long as `u`) and the outputs into `cols`, resized to one
+/// column of `u.len()` per output (allocations are kept). [`Kernel::eval_into`] is this with
+/// the forward kernel; code generation benchmarks call it with kernels of other options.
+pub fn run_chunked(
+    jit: &CompiledKernel,
+    params: &[f32],
+    u: &[f32],
+    v: &[f32],
+    seeds: &[&[f32]],
+    cols: &mut Vec<Vec<f32>>,
+) -> Result<(), KernelError> {
+    check_points(u, v)?;
+    let n = u.len();
+    if let Some((s, c)) = seeds.iter().enumerate().find(|(_, c)| c.len() != n) {
+        return Err(KernelError::Shape(format!("seed column {s} has {} points, u has {n}", c.len())));
+    }
+    resize_columns(cols, jit.num_outputs(), n);
+    let work = split_columns(cols, n);
+    work.into_par_iter().enumerate().try_for_each(|(c, mut outs)| {
+        let r = chunk_range(c, n);
+        let s: Vec<&[f32]> = seeds.iter().map(|col| &col[r.clone()]).collect();
+        jit.run(params, &u[r.clone()], &v[r], &s, &mut outs)
+    })?;
+    Ok(())
 }
 
 fn check_points(u: &[f32], v: &[f32]) -> Result<(), KernelError> {

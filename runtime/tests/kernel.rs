@@ -240,3 +240,38 @@ fn grid_row_zero_is_the_top_of_the_image() {
     let (gu, gv) = grid_uv(w, h).unwrap();
     assert_eq!((out[0].clone(), out[1].clone()), (gu, gv));
 }
+
+/// The chunking helpers the kernel uses are the ones benchmarks get: contiguous fixed chunks,
+/// and `run_chunked` of the adjoint kernel gives the columns `Kernel::adjoint` reports.
+#[test]
+fn chunk_helpers_cover_the_batch_and_match_the_kernel() {
+    use psc_runtime::kernel::{chunk_ranges, run_chunked};
+    use rayon::prelude::*;
+    for n in [0, 1, CHUNK, CHUNK + 1, 3 * CHUNK + 17] {
+        let ranges: Vec<_> = chunk_ranges(n).collect();
+        assert_eq!(ranges.len(), n.div_ceil(CHUNK));
+        let mut next = 0;
+        for r in &ranges {
+            assert_eq!(r.start, next);
+            assert!(r.len() == CHUNK || r.end == n, "{r:?} of {n}");
+            next = r.end;
+        }
+        assert_eq!(next, n);
+    }
+    let fwd = smooth_forward();
+    let k = Kernel::with_adjoint(fwd.clone(), reverse::adjoint(&fwd, &[0, 2])).unwrap();
+    let n = 2 * CHUNK + 3;
+    let (u, v) = points(n);
+    let s = seeds(n, 3);
+    let s_refs: Vec<&[f32]> = s.iter().map(|c| &c[..]).collect();
+    let p = params();
+    let mut cols = Vec::new();
+    run_chunked(k.adjoint_jit().unwrap(), &p, &u, &v, &s_refs, &mut cols).unwrap();
+    let g = k.adjoint(&p, &u, &v, &s_refs).unwrap();
+    let layout = k.adjoint_layout().unwrap();
+    assert_eq!(bits(&cols[..3]), bits(&g.values));
+    assert_eq!(bits(std::slice::from_ref(&cols[layout.d_u()])), bits(std::slice::from_ref(&g.d_u)));
+    let summed: f64 = cols[layout.d_param(1)].iter().map(|&x| f64::from(x)).sum();
+    assert!((summed - g.d_params[2]).abs() <= 1e-6 * summed.abs().max(1.0));
+    assert!(run_chunked(k.adjoint_jit().unwrap(), &p, &u, &v, &s_refs[..2], &mut cols).is_err(), "a missing seed column");
+}

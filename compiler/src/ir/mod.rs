@@ -20,6 +20,7 @@
 
 pub mod builder;
 pub mod print;
+pub mod random;
 pub mod semantics;
 pub mod validate;
 

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use psc_base::SplitMix64;
+use psc_compiler::ir::random::{non_leaf_op, NON_LEAF_KINDS};
 use psc_compiler::ir::{Builder, NodeId, Op, Output, Program};
 
 /// [`SplitMix64`] with the ranges these tests draw from, so point sets are reproducible from
@@ -45,6 +46,7 @@ pub enum OpSet {
     Exact,
 }
 
+/// `non_leaf_op` kinds of sin, cos, exp, log, pow, atan2.
 const TRANSCENDENTAL: [usize; 6] = [4, 5, 6, 7, 14, 15];
 
 /// Builds a random DAG: `spec` entries are (op kind, operand picks); `consts` seed the leaves.
@@ -64,36 +66,14 @@ pub fn random_program(
         pool.push(b.constant(c));
     }
     for &(kind, x, y, z) in spec {
-        let mut kind = kind as usize % 22;
+        let mut kind = kind as usize % (NON_LEAF_KINDS + 1);
         if set == OpSet::Exact && TRANSCENDENTAL.contains(&kind) {
             kind = [0, 1, 2, 3, 8, 9][kind % 6];
         }
         let pick = |k: u32| pool[k as usize % pool.len()];
         let (a, c, d) = (pick(x), pick(y), pick(z));
-        let op = match kind {
-            0 => Op::Neg(a),
-            1 => Op::Abs(a),
-            2 => Op::Floor(a),
-            3 => Op::Sqrt(a),
-            4 => Op::Sin(a),
-            5 => Op::Cos(a),
-            6 => Op::Exp(a),
-            7 => Op::Log(a),
-            8 => Op::Add(a, c),
-            9 => Op::Sub(a, c),
-            10 => Op::Mul(a, c),
-            11 => Op::Div(a, c),
-            12 => Op::Min(a, c),
-            13 => Op::Max(a, c),
-            14 => Op::Pow(a, c),
-            15 => Op::Atan2(a, c),
-            16 => Op::Hash(a, c),
-            17 => Op::Lt(a, c),
-            18 => Op::Le(a, c),
-            19 => Op::Eq(a, c),
-            20 => Op::Select(a, c, d),
-            _ => Op::Mul(a, a),
-        };
+        // The one kind past the last is a square, so that squares of wide ranges are common.
+        let op = non_leaf_op(kind, a, c, d).unwrap_or(Op::Mul(a, a));
         let id = b.push(op);
         pool.push(id);
     }
