@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use clap::ValueEnum;
 use psc_compiler::ParamKind;
-use psc_compiler::{compile_files, CompiledGraph, Options};
+use psc_compiler::{compile_files, Adjoint, CompiledGraph, Options};
 use serde_json::json;
 
 use crate::Failure;
@@ -74,7 +74,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         .iter()
         .map(|g| {
             let t = Instant::now();
-            let adj = g.adjoint().program;
+            let adj = g.adjoint();
             (adj, t.elapsed())
         })
         .collect();
@@ -95,12 +95,12 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         match args.emit {
             Some(Emit::Ir) => {
                 for g in &output.graphs {
-                    println!("; graph {} ({})\n{}", g.info.name, g.info.file.display(), g.forward);
+                    println!("{}", g.ir_dump());
                 }
             }
             Some(Emit::Adjoint) => {
                 for (g, (adj, _)) in output.graphs.iter().zip(&adjoints) {
-                    println!("; adjoint of graph {} ({})\n{adj}", g.info.name, g.info.file.display());
+                    println!("{}", g.adjoint_dump(adj));
                 }
             }
             _ => print_summary(&output, &adjoints, files.len(), total),
@@ -142,7 +142,7 @@ fn param_summary(g: &CompiledGraph) -> (usize, usize, usize) {
 
 fn print_summary(
     output: &psc_compiler::CompileOutput,
-    adjoints: &[(psc_compiler::ir::Program, Duration)],
+    adjoints: &[(Adjoint, Duration)],
     files: usize,
     total: Duration,
 ) {
@@ -166,7 +166,7 @@ fn print_summary(
             "  IR         {} nodes requested -> {} after CSE/folding -> {} ops after DCE",
             g.stats.requested_nodes, g.stats.nodes_before_dce, g.stats.forward_ops
         );
-        println!("  ops        forward {}, forward+adjoint {}", g.forward.op_count(), adj.op_count());
+        println!("  ops        forward {}, forward+adjoint {}", g.forward.op_count(), adj.program.op_count());
         println!(
             "  time       lower {:.2} ms, adjoint {:.2} ms",
             g.stats.lower_time.as_secs_f64() * 1e3,
@@ -196,7 +196,7 @@ fn plural(n: usize) -> &'static str {
 
 fn print_json(
     output: &psc_compiler::CompileOutput,
-    adjoints: &[(psc_compiler::ir::Program, Duration)],
+    adjoints: &[(Adjoint, Duration)],
     total: Duration,
 ) {
     let graphs: Vec<_> = output
@@ -227,7 +227,7 @@ fn print_json(
                     "requested_nodes": g.stats.requested_nodes,
                     "nodes_before_dce": g.stats.nodes_before_dce,
                     "forward_ops": g.forward.op_count(),
-                    "adjoint_ops": adj.op_count(),
+                    "adjoint_ops": adj.program.op_count(),
                 },
                 "lower_ms": g.stats.lower_time.as_secs_f64() * 1e3,
                 "adjoint_ms": adj_time.as_secs_f64() * 1e3,

@@ -110,4 +110,22 @@ impl CompiledGraph {
     pub fn adjoint(&self) -> Adjoint {
         crate::diff::reverse::adjoint(&self.forward, &self.info.continuous_slots())
     }
+
+    /// `psc compile --emit ir` for this graph: a header naming it and its file, then the
+    /// forward program ([`Program`]'s `Display`, one node per line).
+    pub fn ir_dump(&self) -> String {
+        format!("; graph {} ({})\n{}", self.info.name, self.info.file.display(), self.forward)
+    }
+
+    /// `psc compile --emit adjoint` for this graph and its `adjoint`: a header, the layout, then
+    /// the fused program.
+    pub fn adjoint_dump(&self, adjoint: &Adjoint) -> String {
+        format!(
+            "; adjoint of graph {} ({})\n; layout: {}\n{}",
+            self.info.name,
+            self.info.file.display(),
+            adjoint.layout,
+            adjoint.program
+        )
+    }
 }

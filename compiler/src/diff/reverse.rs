@@ -107,6 +107,22 @@ impl AdjointLayout {
     }
 }
 
+/// `9 seeds; outputs 0..9 forward, 9 d_u, 10 d_v, 11.. d_param of slots [0, 1, 2]`.
+impl std::fmt::Display for AdjointLayout {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} seeds; outputs 0..{} forward, {} d_u, {} d_v, {}.. d_param of slots {:?}",
+            self.num_seeds(),
+            self.forward_outputs,
+            self.d_u(),
+            self.d_v(),
+            self.d_param(0),
+            self.wrt
+        )
+    }
+}
+
 /// A fused forward + adjoint program and its layout.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Adjoint {
