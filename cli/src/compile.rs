@@ -194,11 +194,7 @@ fn plural(n: usize) -> &'static str {
     }
 }
 
-fn print_json(
-    output: &psc_compiler::CompileOutput,
-    adjoints: &[(Adjoint, Duration)],
-    total: Duration,
-) {
+fn print_json(output: &psc_compiler::CompileOutput, adjoints: &[(Adjoint, Duration)], total: Duration) {
     let graphs: Vec<_> = output
         .graphs
         .iter()

@@ -21,12 +21,8 @@ fn cases_dir() -> PathBuf {
 fn every_ir_case_compiles_validates_and_matches_its_snapshot() {
     let dir = cases_dir();
     // Top-level files only: `util/` holds imported modules, not cases.
-    let mut cases: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == "psg"))
-        .collect();
-    cases.sort();
+    let mut cases = psc_compiler::find_sources(&dir).unwrap();
+    cases.retain(|p| p.parent() == Some(&dir));
     assert!(cases.len() >= 8, "the IR cases are missing: {}", cases.len());
     for case in cases {
         let name = case.file_stem().unwrap().to_string_lossy().into_owned();

@@ -125,7 +125,11 @@ fn a_subexpression_written_twice_costs_the_same_as_written_once() {
             o.forward.op_count(),
             "writing a subexpression twice costs extra:\n{twice}\n{once}"
         );
-        assert_eq!(t.adjoint().program.op_count(), o.adjoint().program.op_count(), "adjoints differ in size:\n{twice}\n{once}");
+        assert_eq!(
+            t.adjoint().program.op_count(),
+            o.adjoint().program.op_count(),
+            "adjoints differ in size:\n{twice}\n{once}"
+        );
         // And the repeated form did request more nodes: the sharing was the builder's work.
         assert!(t.stats.requested_nodes > o.stats.requested_nodes, "{twice}");
         check_invariants(&t.forward).unwrap();

@@ -1,8 +1,8 @@
 //! The entry point: source text in, [`File`] or every error we can find out.
 
 use crate::ast::File;
-use crate::error::ParseError;
 use crate::ast_build::AstBuilder;
+use crate::error::ParseError;
 use crate::scan::scan;
 use crate::syntax::{translate, PsgParser, Rule};
 use pest::Parser;

@@ -273,5 +273,8 @@ fn chunk_helpers_cover_the_batch_and_match_the_kernel() {
     assert_eq!(bits(std::slice::from_ref(&cols[layout.d_u()])), bits(std::slice::from_ref(&g.d_u)));
     let summed: f64 = cols[layout.d_param(1)].iter().map(|&x| f64::from(x)).sum();
     assert!((summed - g.d_params[2]).abs() <= 1e-6 * summed.abs().max(1.0));
-    assert!(run_chunked(k.adjoint_jit().unwrap(), &p, &u, &v, &s_refs[..2], &mut cols).is_err(), "a missing seed column");
+    assert!(
+        run_chunked(k.adjoint_jit().unwrap(), &p, &u, &v, &s_refs[..2], &mut cols).is_err(),
+        "a missing seed column"
+    );
 }

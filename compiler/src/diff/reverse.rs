@@ -88,7 +88,10 @@ impl AdjointLayout {
             return Err(format!("{} outputs where the layout has {}", adjoint.outputs.len(), self.num_outputs()));
         }
         if adjoint.num_params != forward.num_params {
-            return Err(format!("{} parameter slots, the forward program has {}", adjoint.num_params, forward.num_params));
+            return Err(format!(
+                "{} parameter slots, the forward program has {}",
+                adjoint.num_params, forward.num_params
+            ));
         }
         for (f, a) in forward.outputs.iter().zip(&adjoint.outputs) {
             if f.name != a.name {

@@ -13,10 +13,10 @@ use std::time::Instant;
 
 use psc_grammar::ast::{self, GraphMember, Span};
 
-use crate::diag::{Diagnostic, FileId};
-use crate::diff::forward::{ForwardDiff, Wrt};
 use crate::channel::Channel;
 use crate::compiled::{CompileStats, CompiledGraph, GraphInfo, ParamInfo, ParamKind};
+use crate::diag::{Diagnostic, FileId};
+use crate::diff::forward::{ForwardDiff, Wrt};
 use crate::ir::{Builder, NodeId, Output};
 use crate::module::{ItemRef, ModuleId, ModuleSet};
 
@@ -226,7 +226,9 @@ pub fn lower_graph(set: &ModuleSet, module: ModuleId, g: &ast::GraphDef) -> Resu
     // Cheap next to lowering (one hash per node), and what every consumer relies on.
     if let Err(e) = forward.validate() {
         let message = format!("internal compiler error: graph `{}` lowered to an invalid program: {e}", g.name.name);
-        return Err(Box::new(Diagnostic::error(l.file, g.name.span, message).with_hint("please report this with the input file")));
+        return Err(Box::new(
+            Diagnostic::error(l.file, g.name.span, message).with_hint("please report this with the input file"),
+        ));
     }
     let module_ref = set.module(module);
     Ok(CompiledGraph {

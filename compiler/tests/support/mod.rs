@@ -323,7 +323,9 @@ pub fn check_gradients(
             if e[c].to_bits() != base[k][c].to_bits() && !(e[c].is_nan() && base[k][c].is_nan()) {
                 cov.failures.push(format!(
                     "{label}: fused forward channel {} = {} but forward = {}",
-                    Channel::ALL[c], e[c], base[k][c]
+                    Channel::ALL[c],
+                    e[c],
+                    base[k][c]
                 ));
             }
         }

@@ -6,8 +6,8 @@
 //! overflow the stack of whoever walks or even drops it. Beyond [`MAX_EXPR_DEPTH`]
 //! we report an error and cut the tree short.
 
-use crate::ast::*;
 use super::{AstBuilder, Pair, Pairs};
+use crate::ast::*;
 use crate::syntax::Rule;
 use pest::pratt_parser::{Assoc, Op, PrattParser};
 use std::sync::LazyLock;

@@ -1,0 +1,93 @@
+//! Input built to hurt the compiler as a whole (issue 14's classes): folder trees with link
+//! loops, one graph name in two files, and more below. Each must end quickly with a clear
+//! result; none of these tests asserts on time, but each would hang or fail without its fix.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use psc_compiler::{compile_files, find_sources, Options};
+
+/// A fresh folder under the system temp dir, removed when dropped.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(name: &str) -> Scratch {
+        let dir = std::env::temp_dir().join(format!("psc-hostile-{name}-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).unwrap();
+        Scratch(dir)
+    }
+    fn write(&self, rel: &str, text: &str) -> PathBuf {
+        let path = self.0.join(rel);
+        fs::create_dir_all(path.parent().unwrap()).unwrap();
+        fs::write(&path, text).unwrap();
+        path
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = fs::remove_dir_all(&self.0);
+    }
+}
+
+fn graph(name: &str) -> String {
+    format!("graph {name} {{\n    output albedo = vec3(0.5)\n    output roughness = 0.5\n    output height = 0.0\n}}\n")
+}
+
+fn options(root: &Path) -> Options {
+    Options { lib_root: Some(root.to_path_buf()) }
+}
+
+#[cfg(unix)]
+#[test]
+fn a_graphs_folder_with_link_loops_compiles_each_file_once() {
+    use std::os::unix::fs::symlink;
+    let dir = Scratch::new("loops");
+    dir.write("a/x.psg", &graph("x"));
+    dir.write("b/y.psg", &graph("y"));
+    dir.write("top.psg", &graph("top"));
+    symlink("..", dir.0.join("a/up")).unwrap();
+    symlink("../a", dir.0.join("a/again")).unwrap();
+    symlink("../b", dir.0.join("a/b_again")).unwrap();
+    symlink("top.psg", dir.0.join("top_link.psg")).unwrap();
+    let files = find_sources(&dir.0).unwrap();
+    let names: Vec<_> = files.iter().map(|f| f.strip_prefix(&dir.0).unwrap().to_path_buf()).collect();
+    assert_eq!(names, ["a/x.psg", "b/y.psg", "top.psg"].map(PathBuf::from));
+    let out = compile_files(&files, &options(&dir.0));
+    assert!(!out.has_errors(), "{}", out.render_diagnostics());
+    let mut graphs: Vec<_> = out.graphs.iter().map(|g| g.info.name.as_str()).collect();
+    graphs.sort();
+    assert_eq!(graphs, ["top", "x", "y"]);
+}
+
+#[test]
+fn one_file_given_twice_is_compiled_once() {
+    let dir = Scratch::new("twice");
+    let path = dir.write("g.psg", &graph("g"));
+    let again = dir.0.join(".").join("g.psg");
+    let out = compile_files(&[path.clone(), again, path], &options(&dir.0));
+    assert!(!out.has_errors(), "{}", out.render_diagnostics());
+    assert_eq!(out.graphs.len(), 1);
+    assert_eq!(out.files.len(), 3);
+    assert!(out.files.iter().all(|(_, ok)| *ok));
+}
+
+#[test]
+fn one_graph_name_in_two_files_is_an_error_naming_both() {
+    let dir = Scratch::new("clash");
+    let a = dir.write("stone/oak.psg", &graph("oak"));
+    let b = dir.write("wood/oak.psg", &format!("{}\n{}", graph("pine"), graph("oak")));
+    let out = compile_files(&[a.clone(), b.clone()], &options(&dir.0));
+    assert!(out.has_errors());
+    let text = out.render_diagnostics();
+    assert!(text.contains("graph `oak` is defined in two files"), "{text}");
+    assert!(text.contains(&a.display().to_string()) && text.contains(&b.display().to_string()), "{text}");
+    assert!(text.contains("first defined here"), "{text}");
+    // The second file is the one in error; the first compiled.
+    assert_eq!(out.files, vec![(a, true), (b, false)]);
+    // Unique names across the same two files are fine.
+    let c = dir.write("wood/pine.psg", &graph("birch"));
+    let out = compile_files(&[c, dir.0.join("stone/oak.psg")], &options(&dir.0));
+    assert!(!out.has_errors(), "{}", out.render_diagnostics());
+}
