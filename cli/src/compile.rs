@@ -163,8 +163,12 @@ fn print_summary(
             println!("    {:<18} {:<24} default {:?}", p.name, range, p.default);
         }
         println!(
-            "  IR         {} nodes requested -> {} after CSE/folding -> {} ops after DCE",
-            g.stats.requested_nodes, g.stats.nodes_before_dce, g.stats.forward_ops
+            "  IR         {} nodes requested -> {} after CSE/folding -> {} ops after DCE ({} lowering steps of {})",
+            g.stats.requested_nodes,
+            g.stats.nodes_before_dce,
+            g.stats.forward_ops,
+            g.stats.lowering_work,
+            psc_compiler::lower::MAX_LOWERING_WORK
         );
         println!("  ops        forward {}, forward+adjoint {}", g.forward.op_count(), adj.program.op_count());
         println!(
@@ -221,6 +225,7 @@ fn print_json(output: &psc_compiler::CompileOutput, adjoints: &[(Adjoint, Durati
                 "params": params,
                 "ir": {
                     "requested_nodes": g.stats.requested_nodes,
+                    "lowering_work": g.stats.lowering_work,
                     "nodes_before_dce": g.stats.nodes_before_dce,
                     "forward_ops": g.forward.op_count(),
                     "adjoint_ops": adj.program.op_count(),

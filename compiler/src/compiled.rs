@@ -89,6 +89,9 @@ impl GraphInfo {
 pub struct CompileStats {
     /// Node insertions the lowering asked for, before hash-consing and folding removed any.
     pub requested_nodes: usize,
+    /// The lowering's work: expressions evaluated plus nodes requested, against
+    /// [`crate::lower::MAX_LOWERING_WORK`].
+    pub lowering_work: usize,
     /// Nodes after hash-consing and folding, before dead-code elimination.
     pub nodes_before_dce: usize,
     /// Non-leaf nodes of the final forward program.

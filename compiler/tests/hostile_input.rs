@@ -91,3 +91,53 @@ fn one_graph_name_in_two_files_is_an_error_naming_both() {
     let out = compile_files(&[c, dir.0.join("stone/oak.psg")], &options(&dir.0));
     assert!(!out.has_errors(), "{}", out.render_diagnostics());
 }
+
+/// `f0(x) = x`, `fK(x) = body(K)` for K = 1..=depth, and a graph whose albedo uses `f{depth}`.
+fn nested_calls(depth: usize, body: impl Fn(usize) -> String) -> String {
+    let mut src = String::from("fn f0(x: float) -> float { x }\n");
+    for k in 1..=depth {
+        src += &format!("fn f{k}(x: float) -> float {{ {} }}\n", body(k));
+    }
+    src + &format!(
+        "graph g {{\n    output albedo = vec3(f{depth}(uv.x) * 0.001)\n    output roughness = 0.5\n    output height = 0.0\n}}\n"
+    )
+}
+
+#[test]
+fn exponential_inlining_fails_fast_at_a_call_with_the_graph_call_named() {
+    let dir = Scratch::new("expo");
+    let twice = |k: usize| format!("f{}(x) + f{}(x * 1.1)", k - 1, k - 1);
+    // Fine at depth 10 (2^10 calls).
+    let small = dir.write("small.psg", &nested_calls(10, twice));
+    let out = compile_files(&[small], &options(&dir.0));
+    assert!(!out.has_errors(), "{}", out.render_diagnostics());
+    let work = out.graphs[0].stats.lowering_work;
+    assert!(work > 1 << 10 && work < psc_compiler::lower::MAX_LOWERING_WORK, "{work}");
+    // 2^40 calls: refused, not run for days. Nodes requested and calls without any node
+    // (fK(x) = f(K-1)(f(K-1)(x))) both count.
+    let nested = |k: usize| format!("f{}(f{}(x))", k - 1, k - 1);
+    for (name, body) in [("adds", &twice as &dyn Fn(usize) -> String), ("no_nodes", &nested)] {
+        let path = dir.write(&format!("{name}.psg"), &nested_calls(40, body));
+        let out = compile_files(std::slice::from_ref(&path), &options(&dir.0));
+        assert!(out.graphs.is_empty());
+        let text = out.render_diagnostics();
+        assert!(text.contains("budget exceeded here"), "{name}: {text}");
+        // Located at a call inside a function, with the graph's call named as its origin.
+        let d = &out.diagnostics[0];
+        let (line, _) = out.sources.line_col(d.file, d.span.start);
+        assert!((2..=41).contains(&line), "{name}: line {line}\n{text}");
+        assert!(text.contains("inlined from this call in the graph"), "{name}: {text}");
+        assert!(text.contains("f40(uv.x)"), "{name}: {text}");
+    }
+}
+
+/// A loop body that adds no node (`max(x, x)` is `x`): only the work budget can stop it.
+#[test]
+fn nested_loops_run_out_of_budget_instead_of_running_for_hours() {
+    let dir = Scratch::new("loops3");
+    let src = "fn busy(x: float) -> float {\n    var acc = x;\n    for i in 0..1000 {\n        for j in 0..1000 {\n            for k in 0..1000 {\n                acc = max(acc, x);\n            }\n        }\n    }\n    acc\n}\ngraph g {\n    output albedo = vec3(busy(uv.x))\n    output roughness = 0.5\n    output height = 0.0\n}\n";
+    let path = dir.write("loops.psg", src);
+    let out = compile_files(&[path], &options(&dir.0));
+    let text = out.render_diagnostics();
+    assert!(out.has_errors() && text.contains("budget exceeded here"), "{text}");
+}
