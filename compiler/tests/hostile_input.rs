@@ -141,3 +141,28 @@ fn nested_loops_run_out_of_budget_instead_of_running_for_hours() {
     let text = out.render_diagnostics();
     assert!(out.has_errors() && text.contains("budget exceeded here"), "{text}");
 }
+
+/// A diagnostic on a 200 KB line shows a window around the span, not the line: for a syntax
+/// error, a checker error deep in the line, and a huge unknown name.
+#[test]
+fn diagnostics_on_a_200_kb_line_stay_small() {
+    let dir = Scratch::new("long");
+    let spaces = " ".repeat(200_000);
+    let cases = [
+        format!("graph g {{\n    output albedo = vec3(0.5) 0.0{spaces}\n}}\n"),
+        format!("graph g {{\n    output albedo = vec3({spaces}fmb(uv))\n    output roughness = 0.5\n    output height = 0.0\n}}\n"),
+        format!("graph g {{\n    output albedo = vec3({})\n    output roughness = 0.5\n    output height = 0.0\n}}\n", "q".repeat(200_000)),
+    ];
+    for (k, src) in cases.iter().enumerate() {
+        let path = dir.write(&format!("long{k}.psg"), src);
+        let out = compile_files(&[path], &options(&dir.0));
+        assert!(out.has_errors(), "case {k}");
+        let text = out.render_diagnostics();
+        assert!(text.len() < 2_000, "case {k}: {} bytes of diagnostics", text.len());
+        assert!(text.contains('…'), "case {k}: {text}");
+        // The header still gives the real line and column of the span.
+        let d = &out.diagnostics[0];
+        let (line, col) = out.sources.line_col(d.file, d.span.start);
+        assert!(text.contains(&format!(":{line}:{col}")), "case {k}: {text}");
+    }
+}

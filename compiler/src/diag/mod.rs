@@ -1,11 +1,21 @@
 //! Diagnostics: what went wrong, where (file, byte span), and a hint; rendered with
-//! codespan-reporting as `file:line:col`, the source line, and a caret under the span.
+//! codespan-reporting as `file:line:col`, the source line, and a caret under the span. A source
+//! line longer than [`excerpt::MAX_SHOWN_LINE`] bytes is shown as a window around the span
+//! ([`excerpt`]), and messages quoting huge names are shortened, so no input can make a
+//! diagnostic echo kilobytes.
+
+mod excerpt;
+
+pub use excerpt::MAX_SHOWN_LINE;
 
 use codespan_reporting::diagnostic::{Diagnostic as CsDiagnostic, Label};
 use codespan_reporting::files::SimpleFiles;
 use codespan_reporting::term::{self, termcolor};
 
 use psc_grammar::ast::Span;
+
+/// Longest message, label or hint (in bytes) shown whole; longer ones are cut with an ellipsis.
+const MAX_MESSAGE: usize = 400;
 
 /// Index of a file in a [`SourceMap`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -110,28 +120,38 @@ impl Diagnostic {
             Severity::Error => CsDiagnostic::error(),
             Severity::Warning => CsDiagnostic::warning(),
         };
-        let mut labels = vec![Label::primary(self.file.0, self.span.start..self.span.end).with_message(&self.label)];
+        let short = |text: &str| excerpt::shorten(text, MAX_MESSAGE).into_owned();
+        let mut labels =
+            vec![Label::primary(self.file.0, self.span.start..self.span.end).with_message(short(&self.label))];
         for (file, span, note) in &self.related {
-            labels.push(Label::secondary(file.0, span.start..span.end).with_message(note));
+            labels.push(Label::secondary(file.0, span.start..span.end).with_message(short(note)));
         }
-        let notes = self.hint.iter().map(|h| format!("hint: {h}")).collect();
-        base.with_message(&self.message).with_labels(labels).with_notes(notes)
+        let notes = self.hint.iter().map(|h| format!("hint: {}", short(h))).collect();
+        base.with_message(short(&self.message)).with_labels(labels).with_notes(notes)
     }
 
     /// Plain text, as in golden tests and when stderr is not a terminal.
     pub fn render(&self, sources: &SourceMap) -> String {
         let config = term::Config::default();
-        let clamped = self.clamped(sources);
-        term::emit_into_string(&config, &sources.files, &clamped.to_codespan())
-            .unwrap_or_else(|_| format!("error: {}\n", self.message))
+        let diagnostic = self.clamped(sources).to_codespan();
+        let rendered = match excerpt::Excerpt::build(sources, &diagnostic) {
+            Some((excerpt, moved)) => term::emit_into_string(&config, &excerpt, &moved),
+            None => term::emit_into_string(&config, &sources.files, &diagnostic),
+        };
+        rendered.unwrap_or_else(|_| format!("error: {}\n", excerpt::shorten(&self.message, MAX_MESSAGE)))
     }
 
     /// Coloured, for a terminal.
     pub fn emit_colored(&self, sources: &SourceMap, out: &mut dyn termcolor::WriteColor) {
         let config = term::Config::default();
-        let clamped = self.clamped(sources);
-        if term::emit_to_write_style(out, &config, &sources.files, &clamped.to_codespan()).is_err() {
-            let _ = std::io::Write::write_fmt(out, format_args!("error: {}\n", self.message));
+        let diagnostic = self.clamped(sources).to_codespan();
+        let written = match excerpt::Excerpt::build(sources, &diagnostic) {
+            Some((excerpt, moved)) => term::emit_to_write_style(out, &config, &excerpt, &moved),
+            None => term::emit_to_write_style(out, &config, &sources.files, &diagnostic),
+        };
+        if written.is_err() {
+            let message = excerpt::shorten(&self.message, MAX_MESSAGE);
+            let _ = std::io::Write::write_fmt(out, format_args!("error: {message}\n"));
         }
     }
 
