@@ -77,7 +77,7 @@ pub struct Options {
     /// Independent 4-lane vectors per main-loop iteration (1..=4).
     pub groups: usize,
     /// List-schedule the loop body for instruction-level parallelism, keeping about this many
-    /// vector values live ([`schedule`]); `None` keeps the IR's order.
+    /// vector values live (`schedule.rs`); `None` keeps the IR's order.
     pub schedule: Option<usize>,
 }
 

@@ -1,7 +1,7 @@
 //! Diagnostics: what went wrong, where (file, byte span), and a hint; rendered with
 //! codespan-reporting as `file:line:col`, the source line, and a caret under the span. A source
-//! line longer than [`excerpt::MAX_SHOWN_LINE`] bytes is shown as a window around the span
-//! ([`excerpt`]), and messages quoting huge names are shortened, so no input can make a
+//! line longer than [`MAX_SHOWN_LINE`] bytes is shown as a window around the span
+//! (`excerpt.rs`), and messages quoting huge names are shortened, so no input can make a
 //! diagnostic echo kilobytes.
 
 mod excerpt;
