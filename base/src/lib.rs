@@ -1,12 +1,15 @@
 //! `psc-base`: the one copy of small, domain-free helpers that crates on both sides of the
 //! workspace need (the compiler chain and the image chain share no other crate).
 //!
-//! Owns: deterministic random numbers ([`SplitMix64`], [`mix64`]).
+//! Owns: deterministic random numbers ([`SplitMix64`], [`mix64`]); the one folder walker
+//! ([`walk::files_with_extension`]: follows links, never loops, lists each real file once).
 //!
 //! Must never: depend on another photoscene crate or on anything but `std`; know about graphs,
 //! kernels, scenes or images.
 
 #![forbid(unsafe_code)]
+
+pub mod walk;
 
 /// SplitMix64 finaliser: a good 64-bit mixing function.
 #[inline]

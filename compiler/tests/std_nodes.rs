@@ -247,17 +247,16 @@ fn every_std_fn_compiles_differentiates_and_tiles() {
         }
         let g = &out.graphs[0];
         let adjoint = g.adjoint();
-        if let Err(e) = g.forward.validate().and(adjoint.validate()) {
+        if let Err(e) = g.forward.validate().and(adjoint.program.validate()) {
             failures.push(format!("{fname}: invalid program: {e}"));
             continue;
         }
         covered += 1;
-        let slots = g.info.continuous_slots();
         let mut rng = Rng::for_name(fname, 3);
         let mut cov = GradCoverage::default();
         for params in param_vectors(&g.info, &mut rng, 2) {
             let (points, seeds) = random_points(&mut rng, 4);
-            cov.add(&check_gradients(fname, &g.forward, &adjoint, &slots, &params, &points, &seeds));
+            cov.add(&check_gradients(fname, &g.forward, &adjoint, &params, &points, &seeds));
         }
         total.add(&cov);
         let probes = cov.compared + cov.skipped();
@@ -309,7 +308,7 @@ fn every_std_fn_compiles_differentiates_and_tiles() {
             "{:<10} {:<20} {:>2} slots {:>5} ops  grad compared {:>3} ({:>3} non-zero) skipped {:>3}  tiling: {}\n",
             f.module,
             fname,
-            slots.len(),
+            adjoint.layout.wrt().len(),
             g.forward.op_count(),
             cov.compared,
             cov.non_zero,
