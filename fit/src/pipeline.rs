@@ -461,7 +461,7 @@ fn fit_one_part(
     let fit = fit_part(&problem, &starts, &options.fit, Free::ALL)?;
     // The output keeps the graph's roughness map, scaled to the fitted part-wide value.
     fit_view.render(material, &fit.state, options.fit.sampling, &mut ws)?;
-    let map_mean = ws.channel_mean(3);
+    let map_mean = ws.channel_mean(psc_compiler::Channel::Roughness);
     result.roughness_scale = if map_mean > 1e-4 { (fit.state.roughness / map_mean).clamp(0.0, 50.0) } else { 1.0 };
     result.status = if forced.is_some() { PartStatus::Forced } else { PartStatus::Fitted };
     result.graph = graph_name;
@@ -516,7 +516,7 @@ fn refit_appearance(
     part.history.extend(fit.history);
     part.iterations += fit.iterations;
     fit_view.render(material, &part.state, options.fit.sampling, &mut ws)?;
-    let map_mean = ws.channel_mean(3);
+    let map_mean = ws.channel_mean(psc_compiler::Channel::Roughness);
     part.roughness_scale = if map_mean > 1e-4 { (part.state.roughness / map_mean).clamp(0.0, 50.0) } else { 1.0 };
     Ok(())
 }
