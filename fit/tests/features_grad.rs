@@ -1,6 +1,6 @@
 //! The feature loss's gradient against central finite differences, on random images and
-//! region shapes (full, soft-edged, thin, ring-shaped), with and without colour and
-//! working-resolution reduction.
+//! region shapes (full, soft-edged, thin, ring-shaped), with and without colour, the noise
+//! model's dead zone and working-resolution reduction.
 
 mod features_support;
 
@@ -25,6 +25,11 @@ fn cases() -> Vec<Case> {
             name: "disc, working resolution /2",
             region: shape("disc", 70, 66),
             config: FeatureConfig { max_pixels: Some(1300), ..base.clone() },
+        },
+        Case {
+            name: "rect, no noise model",
+            region: shape("rect", 40, 34),
+            config: FeatureConfig { photo_noise: false, ..base.clone() },
         },
         Case {
             name: "rect, achromatic only, 4 orientations",
