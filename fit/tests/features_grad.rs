@@ -186,3 +186,25 @@ fn bad_input_is_an_error() {
     assert_eq!(tiny.loss_and_grad(&vec![[0.9; 3]; 36], &t, &mut s, &mut g).unwrap(), 0.0);
     assert!(g.iter().all(|v| *v == [0.0; 3]));
 }
+
+#[test]
+fn shared_across_threads_gives_the_sequential_bits() {
+    fn assert_send_sync<T: Send + Sync>() {}
+    assert_send_sync::<FeatureLoss>();
+    assert_send_sync::<psc_fit::features::Descriptor>();
+    use rayon::prelude::*;
+    let mut rng = Rng(5);
+    let region = shape("disc", 64, 64);
+    let loss = FeatureLoss::new(&FeatureConfig::default(), &region).unwrap();
+    let target = loss.describe(&random_pattern(64, 64, &mut rng), &mut Scratch::default()).unwrap();
+    let images: Vec<Vec<[f32; 3]>> = (0..16).map(|_| random_pattern(64, 64, &mut rng)).collect();
+    let run = |img: &Vec<[f32; 3]>, s: &mut Scratch| {
+        let mut g = vec![[0.0; 3]; img.len()];
+        let l = loss.loss_and_grad(img, &target, s, &mut g).unwrap();
+        (l.to_bits(), g)
+    };
+    let mut s = Scratch::default();
+    let sequential: Vec<_> = images.iter().map(|img| run(img, &mut s)).collect();
+    let parallel: Vec<_> = images.par_iter().map_init(Scratch::default, |s, img| run(img, s)).collect();
+    assert_eq!(sequential, parallel);
+}
