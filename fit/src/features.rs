@@ -117,14 +117,15 @@ pub struct FeatureConfig {
     /// leaves at most this many pixels. `None`: full resolution.
     pub max_pixels: Option<usize>,
     /// Amplitude (sRGB units) below which band energies are not told apart: the descriptor is
-    /// `ln(mean energy + contrast_floor²)`. Must be positive.
+    /// `½·ln(mean energy + contrast_floor²)`. Must be positive.
     pub contrast_floor: f32,
     /// A level counts when its pooled weight is at least this many of its pixels.
     pub min_level_support: f32,
     /// Weight of each chroma entry relative to an achromatic one (≥ 0).
     pub chroma_weight: f32,
     /// Model the target's pixel noise: [`FeatureLoss::describe`] estimates it, and the losses
-    /// add its expected energy to every band of the (noise-free) candidate. See `noise.rs`.
+    /// do not penalise a (noise-free) candidate for falling short of a band's energy by up to
+    /// the noise's share of it (see the module docs).
     pub photo_noise: bool,
 }
 
@@ -191,12 +192,14 @@ struct Layout {
     groups: usize,
     orientations: usize,
     floor_bits: u32,
+    /// FNV-1a hash of the region's weights: equal sizes do not make regions equal.
+    region_hash: u64,
 }
 
 /// Pooled statistics of one image over one region: `½·ln(mean energy + floor²)` (a log
 /// amplitude) per active level, colour group (achromatic, then chroma) and orientation, in that
-/// nesting order; and the image's estimated pixel noise, which the losses add to candidates
-/// when this is the target.
+/// nesting order; and the image's estimated pixel noise, which sets the dead zone of losses
+/// against it as a target.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Descriptor {
     values: Vec<f32>,
@@ -316,6 +319,9 @@ impl FeatureLoss {
             groups,
             orientations: o,
             floor_bits: config.contrast_floor.to_bits(),
+            region_hash: region.weight.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, w| {
+                (h ^ u64::from(w.to_bits())).wrapping_mul(0x0000_0100_0000_01b3)
+            }),
         };
         let bank = Bank::new(o);
         let gains = noise::band_gains(&bank, geometry.levels.len());

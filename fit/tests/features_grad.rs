@@ -175,6 +175,10 @@ fn bad_input_is_an_error() {
     let target = loss.describe(&vec![[0.5; 3]; 900], &mut s).unwrap();
     let other = FeatureLoss::new(&config, &shape("disc", 30, 30)).unwrap();
     assert!(other.loss(&vec![[0.5; 3]; 900], &target, &mut s).is_err(), "descriptor of another region");
+    let mut shifted = shape("rect", 30, 30);
+    shifted.weight[0] = 0.0;
+    let same_size = FeatureLoss::new(&config, &shifted).unwrap();
+    assert!(same_size.loss(&vec![[0.5; 3]; 900], &target, &mut s).is_err(), "region of the same size, other mask");
     let mut grad = vec![[0.0; 3]; 899];
     assert!(loss.loss_and_grad(&vec![[0.5; 3]; 900], &target, &mut s, &mut grad).is_err());
 

@@ -2,13 +2,16 @@
 //!
 //! A photo (or a path-traced dev "photo") carries pixel noise that a rendered candidate lacks;
 //! on faint textures (plaster) it dominates the finest band and pulls the landscape minimum to
-//! finer scales. Independent noise adds its own energy to every band in expectation, so the
-//! loss adds the target's noise energy σ²·‖k‖² to the candidate's pooled energies, where k is a
-//! band's filter referred back to the working resolution (through the pyramid).
+//! finer scales. Independent noise adds its own energy to every band in expectation:
+//! σ²·‖k‖², where k is a band's filter referred back to the working resolution (through the
+//! pyramid). The loss uses that energy as a dead zone below the target (see the module docs of
+//! `features`): the estimate of σ also counts fine texture, so it is an upper bound.
 //!
 //! σ per colour axis is estimated from the target once (Immerkær's 3×3 mask, which cancels
 //! constant, linear and most smooth structure, with the median absolute response so that edges
-//! and sparse features do not count): σ = median|I ∗ N| / (0.6745 · ‖N‖), ‖N‖ = 6.
+//! and sparse features do not count): σ = median|I ∗ N| / (0.6745 · ‖N‖), ‖N‖ = 6. On the dev
+//! photos it reads 0.006–0.013 on plaster, where the residual against the true texture is
+//! 0.007–0.014, and 0.019–0.032 on the dev_1 gravel, whose own fine texture reads 0.013–0.023.
 
 use std::sync::Mutex;
 
