@@ -495,13 +495,15 @@ fn refit_appearance(
     let obs = &views[v];
     let mut ws = Workspace::default();
     if part.status == PartStatus::Homogeneous {
-        if let Some(view) = part_view(obs, a, &renderer.geometry, &obs.camera, &shading[v], options.search_pixels, 1.0) {
+        if let Some(view) = part_view(obs, a, &renderer.geometry, &obs.camera, &shading[v], options.search_pixels, 1.0)
+        {
             let colour = flat_colour(homogeneous, &view, &mut ws)?;
             part.state = flat_state(homogeneous, colour, part.state.roughness);
         }
         return Ok(());
     }
-    let Some(fit_view) = part_view(obs, a, &renderer.geometry, &obs.camera, &shading[v], options.fit_pixels, 1.0) else {
+    let Some(fit_view) = part_view(obs, a, &renderer.geometry, &obs.camera, &shading[v], options.fit_pixels, 1.0)
+    else {
         return Ok(());
     };
     let material = library.get(&part.graph).expect("fitted graphs come from the library");
@@ -509,7 +511,8 @@ fn refit_appearance(
     let fit_loss = PartLoss::new(&fit_view, options.loss, &options.features, &mut scratch)?;
     let problem =
         Problem { material, fit_view: &fit_view, fit_loss: &fit_loss, search_view: &fit_view, search_loss: &fit_loss };
-    let settings = FitSettings { max_iterations: options.refit_iterations, starts: 1, start_iterations: 0, ..options.fit };
+    let settings =
+        FitSettings { max_iterations: options.refit_iterations, starts: 1, start_iterations: 0, ..options.fit };
     let fit = fit_part(&problem, std::slice::from_ref(&part.state), &settings, Free::APPEARANCE)?;
     part.state = fit.state;
     part.loss = fit.loss;

@@ -1,0 +1,153 @@
+//! A whole fit of a dev scene, end to end, at reduced settings: the result does not depend on
+//! the thread count, never reads `truth/` (a copy of the scene without it gives the same
+//! bytes), and the output folder is complete.
+
+use std::path::{Path, PathBuf};
+
+use psc_fit::layer::Sampling;
+use psc_fit::output::{self, OutputOptions};
+use psc_fit::pipeline::{fit_scene, FitOptions, Silent};
+use psc_render::scene::Scene;
+use psc_runtime::library::{default_library_root, Library};
+
+fn dev_scene(name: &str) -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(name);
+    if dir.join("scene.json").is_file() {
+        return Some(dir);
+    }
+    assert!(std::env::var_os("CI").is_none(), "CI must have the shared dev scenes at {}", dir.display());
+    eprintln!("SKIPPED: the shared dev scenes are not at {}", dir.display());
+    None
+}
+
+fn copy_without_truth(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let name = entry.file_name();
+        if name == "truth" {
+            continue;
+        }
+        let target = to.join(&name);
+        if entry.file_type().unwrap().is_dir() {
+            copy_without_truth(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), target).unwrap();
+        }
+    }
+}
+
+fn small_options() -> FitOptions {
+    let mut o = FitOptions { seed: 7, ..Default::default() };
+    o.select.exemplars = 2;
+    o.select.scales = 2;
+    o.fit.max_iterations = 24;
+    o.fit.starts = 2;
+    o.fit.start_iterations = 4;
+    o.fit.search_every = 12;
+    o.fit.sampling = Sampling { density: 160.0, max_per_axis: 2 };
+    o.grid.stride = 8;
+    o.grid.samples_per_bin = 1;
+    o.fit_pixels = 1024;
+    o.search_pixels = 256;
+    o.refit_iterations = 8;
+    o
+}
+
+fn fit_into(scene_dir: &Path, out: &Path, threads: usize, library: &Library) {
+    let scene = Scene::load(scene_dir).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    pool.install(|| {
+        let result = fit_scene(&scene, library, None, &small_options(), &Silent).unwrap();
+        let opts = OutputOptions { texture_size: 32, render_spp: 2, force: true, seed: 7, command: "test".into() };
+        output::write(out, &scene, library, &result, &opts).unwrap();
+    });
+}
+
+/// Every file under `dir`, relative path → bytes, with the JSON fields that legitimately differ
+/// between runs (timings, the scene's path) removed.
+fn contents(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    fn walk(root: &Path, dir: &Path, out: &mut Vec<(PathBuf, Vec<u8>)>) {
+        let mut entries: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().path()).collect();
+        entries.sort();
+        for p in entries {
+            if p.is_dir() {
+                walk(root, &p, out);
+                continue;
+            }
+            let mut bytes = std::fs::read(&p).unwrap();
+            if p.extension().is_some_and(|e| e == "json") {
+                let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+                strip(&mut v);
+                bytes = serde_json::to_vec(&v).unwrap();
+            }
+            out.push((p.strip_prefix(root).unwrap().to_path_buf(), bytes));
+        }
+    }
+    fn strip(v: &mut serde_json::Value) {
+        match v {
+            serde_json::Value::Object(m) => {
+                m.remove("timings_s");
+                m.remove("scene");
+                m.values_mut().for_each(strip);
+            }
+            serde_json::Value::Array(a) => a.iter_mut().for_each(strip),
+            _ => {}
+        }
+    }
+    let mut out = Vec::new();
+    walk(dir, dir, &mut out);
+    out
+}
+
+#[test]
+fn fit_is_deterministic_across_thread_counts_and_never_reads_truth() {
+    let Some(scene) = dev_scene("dev_1") else { return };
+    assert!(scene.join("truth").is_dir(), "the original keeps its truth/ for the comparison to mean something");
+    let library = Library::load(&default_library_root()).unwrap();
+    let tmp = std::env::temp_dir().join(format!("psc-fit-determinism-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    let copy = tmp.join("dev_1_without_truth");
+    copy_without_truth(&scene, &copy);
+    fit_into(&scene, &tmp.join("with_truth_1_thread"), 1, &library);
+    fit_into(&copy, &tmp.join("without_truth_2_threads"), 2, &library);
+    let a = contents(&tmp.join("with_truth_1_thread"));
+    let b = contents(&tmp.join("without_truth_2_threads"));
+    let names: Vec<_> = a.iter().map(|x| x.0.clone()).collect();
+    assert_eq!(names, b.iter().map(|x| x.0.clone()).collect::<Vec<_>>());
+    for name in ["materials.json", "lights.json", "result.json", "renders/view0.png"] {
+        assert!(names.iter().any(|n| n == Path::new(name)), "no {name} in the output");
+    }
+    for ((name, x), (_, y)) in a.iter().zip(&b) {
+        assert!(x == y, "{} differs between the two fits", name.display());
+    }
+    eprintln!("{} files identical", a.len());
+    let _ = std::fs::remove_dir_all(&tmp);
+}
+
+#[test]
+fn an_existing_output_folder_is_kept_unless_forced() {
+    let Some(scene_dir) = dev_scene("dev_4") else { return };
+    let library = Library::load(&default_library_root()).unwrap();
+    let scene = Scene::load(&scene_dir).unwrap();
+    let tmp = std::env::temp_dir().join(format!("psc-fit-existing-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(tmp.join("out")).unwrap();
+    std::fs::write(tmp.join("out/mine.txt"), "keep me").unwrap();
+    let mut options = small_options();
+    options.refit_rounds = 0;
+    options.select.exemplars = 1;
+    options.fit.max_iterations = 4;
+    let result = fit_scene(&scene, &library, None, &options, &Silent).unwrap();
+    let opts = OutputOptions { texture_size: 0, render_spp: 0, force: false, seed: 7, command: "test".into() };
+    let err = output::write(&tmp.join("out"), &scene, &library, &result, &opts).unwrap_err().to_string();
+    assert!(err.contains("exists") && err.contains("--force"), "{err}");
+    assert_eq!(std::fs::read_to_string(tmp.join("out/mine.txt")).unwrap(), "keep me");
+    let opts = OutputOptions { force: true, ..opts };
+    output::write(&tmp.join("out"), &scene, &library, &result, &opts).unwrap();
+    assert!(!tmp.join("out/mine.txt").exists() && tmp.join("out/materials.json").is_file());
+    // No temporaries left beside it.
+    let leftovers: Vec<_> = std::fs::read_dir(&tmp).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(leftovers, vec![std::ffi::OsString::from("out")]);
+    let _ = std::fs::remove_dir_all(&tmp);
+}
