@@ -7,6 +7,7 @@
 mod bake;
 mod bench;
 mod compile;
+mod eval;
 mod library;
 mod render;
 
@@ -33,6 +34,8 @@ enum Command {
     Library(library::Args),
     /// Render a scene: path-traced images, G-buffers, per-pixel light grids.
     Render(render::Args),
+    /// Evaluate a fit against a dev scene's ground truth, beside the baselines.
+    Eval(eval::Args),
 }
 
 /// An error already worth showing to the user as is.
@@ -66,6 +69,7 @@ fn main() -> ExitCode {
         Command::Bake(args) => bake::run(args),
         Command::Library(args) => library::run(args),
         Command::Render(args) => render::run(args),
+        Command::Eval(args) => eval::run(args),
     };
     match result {
         Ok(code) => code,
