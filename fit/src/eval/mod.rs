@@ -250,7 +250,10 @@ pub fn evaluate(
             return Err(EvalError(format!("{}: the fit's {what} file is missing", path.display())));
         }
     }
-    let truth_mesh = if opts.geometries.contains(&Geometry::Truth) {
+    let mut geometries = opts.geometries.clone();
+    geometries.sort();
+    geometries.dedup();
+    let truth_mesh = if geometries.contains(&Geometry::Truth) {
         Some(backend::truth_mesh(scene_dir).ok_or_else(|| {
             EvalError(format!("{}: no truth/scene_true.obj (use --geometry model)", scene_dir.display()))
         })?)
@@ -286,7 +289,7 @@ pub fn evaluate(
     methods.sort();
     methods.dedup();
     let flat_rounds = if methods.contains(&Method::FlatFitted) { opts.flat_iterations } else { 0 };
-    let planned = flat_rounds as usize * inputs.len() + opts.geometries.len() * methods.len() * cameras.len();
+    let planned = flat_rounds as usize * inputs.len() + geometries.len() * methods.len() * cameras.len();
     progress(Progress::Planned { renders: planned });
     let mut renders = 0usize;
 
@@ -317,7 +320,7 @@ pub fn evaluate(
     let model_parts = model.part_names().to_vec();
     let mut images = Vec::new();
     let mut model_slot = Some(model);
-    for &geometry in &opts.geometries {
+    for &geometry in &geometries {
         let mut ctx = match geometry {
             Geometry::Model => model_slot.take().expect("the model context is used once"),
             Geometry::Truth => GeometryContext::load(scene_dir, truth_mesh.as_deref())?,
