@@ -240,7 +240,7 @@ pub fn evaluate(
         *stage = Instant::now();
     };
     if opts.spp == 0 || opts.flat_spp == 0 {
-        return Err(EvalError("--spp and the flat fit's spp must be positive".into()));
+        return Err(EvalError("samples per pixel must be positive".into()));
     }
     if opts.geometries.is_empty() || opts.methods.is_empty() || opts.kinds.is_empty() {
         return Err(EvalError("nothing to evaluate: no geometry, method or view kind".into()));
@@ -253,6 +253,8 @@ pub fn evaluate(
     let mut geometries = opts.geometries.clone();
     geometries.sort();
     geometries.dedup();
+    let mut model = GeometryContext::load(scene_dir, None)?;
+    let truth = truth::load(&model)?;
     let truth_mesh = if geometries.contains(&Geometry::Truth) {
         Some(backend::truth_mesh(scene_dir).ok_or_else(|| {
             EvalError(format!("{}: no truth/scene_true.obj (use --geometry model)", scene_dir.display()))
@@ -261,9 +263,8 @@ pub fn evaluate(
         None
     };
 
-    let mut model = GeometryContext::load(scene_dir, None)?;
-    let truth = truth::load(&model)?;
-    let mut warnings = truth.warnings.clone();
+    let mut warnings = model.scene.warnings.clone();
+    warnings.extend(truth.warnings.iter().cloned());
     let (fitted_lights, fitted_env) = backend::read_lights_file(&fit.lights, &model)?;
     let fitted_radiances = Radiances { lights: fitted_lights.clone(), environment: fitted_env };
     let assigned_parts = assigned_part_names(&fit.materials)?;

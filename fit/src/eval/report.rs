@@ -163,6 +163,29 @@ impl Evaluation {
                 })
             })
             .collect();
+        // Per (geometry, kind, method, part): the part's numbers averaged over the images.
+        let mut by_part: std::collections::BTreeMap<(Geometry, ViewKind, Method, &str), Vec<&super::PartMetrics>> =
+            Default::default();
+        for im in &self.images {
+            for p in &im.parts {
+                by_part.entry((im.geometry, im.kind, im.method, p.part.as_str())).or_default().push(p);
+            }
+        }
+        let part_rows: Vec<Value> = by_part
+            .iter()
+            .map(|((g, k, m, part), ps)| {
+                let avg = |f: &dyn Fn(&super::PartMetrics) -> Option<f64>| {
+                    let v: Vec<f64> = ps.iter().filter_map(|p| f(p)).collect();
+                    num(if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 })
+                };
+                json!({
+                    "geometry": g.name(), "views": k.name(), "method": m.name(), "part": part,
+                    "images": ps.len(), "pixels": ps.iter().map(|p| p.pixels).sum::<usize>(),
+                    "rmse": avg(&|p| Some(p.rmse)), "mean_colour": avg(&|p| Some(p.mean_colour)),
+                    "colour_w1": avg(&|p| Some(p.colour_w1)), "contrast_w1": avg(&|p| p.contrast_w1),
+                })
+            })
+            .collect();
         let per_part = |values: &dyn Fn(usize) -> Value| -> Value {
             self.part_names
                 .iter()
@@ -209,6 +232,7 @@ impl Evaluation {
             },
             "rows": self.rows.iter().map(row).collect::<Vec<_>>(),
             "ratios": ratios,
+            "parts": part_rows,
             "images": images,
             "warnings": self.warnings,
             "timings_s": self.timings.iter().map(|(n, t)| json!({"stage": n, "seconds": t})).collect::<Vec<_>>(),
