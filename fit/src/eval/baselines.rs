@@ -6,9 +6,12 @@
 //!   over every labelled pixel of the input views.
 //! - **flat fitted**: a constant albedo per part fitted under the evaluated lights on the coarse
 //!   model: start from the pixel median, render the input views, multiply each part's albedo by
-//!   (photo linear mean / render linear mean) per channel over the part's labelled pixels that
-//!   are not clipped in the photo (every channel < 0.99), clamp to [0, 1], repeat (the repeats
-//!   account for interreflections). Roughness: the fitted material's mean roughness over the
+//!   (photo linear mean / render linear mean) per channel over the part's pixels, clamp to
+//!   [0, 1], repeat (the repeats account for interreflections). A part's pixels: labelled as the
+//!   part in the photo, showing the part in the coarse model's G-buffer (where the model is
+//!   misaligned, the render there shows another part, whose light does not scale with this
+//!   part's albedo, and the update would drive it to 0 or 1), and not clipped in the photo
+//!   (every channel < 0.99). Roughness: the fitted material's mean roughness over the
 //!   part's pixels in the input views (coarse-model G-buffers), for parts materials.json names
 //!   and the input views show; 0.7 otherwise. So flat fitted differs from the fit only in its
 //!   lack of texture and normal detail.
@@ -91,6 +94,23 @@ pub fn pixel_median(ctx: &GeometryContext, inputs: &[&EvalView], masks: &[Vec<u1
     (albedo, unseen)
 }
 
+/// `masks` (photo labels as model part index + 1) kept only where the coarse model's G-buffer
+/// sees the same part.
+pub fn aligned_masks(
+    ctx: &GeometryContext,
+    inputs: &[&EvalView],
+    masks: &[Vec<u16>],
+) -> Result<Vec<Vec<u16>>, EvalError> {
+    inputs
+        .iter()
+        .zip(masks)
+        .map(|(v, mask)| {
+            let (ids, _) = ctx.part_ids_and_uvs(&v.camera, v.width, v.height)?;
+            Ok(mask.iter().zip(&ids).map(|(&m, &g)| if m == g { m } else { 0 }).collect())
+        })
+        .collect()
+}
+
 /// Mean roughness of `fitted[i]` over part i's pixels in the input views (coarse-model
 /// G-buffers), for the parts in `named`; [`PIXEL_MEDIAN_ROUGHNESS`] elsewhere.
 pub fn fitted_roughness(
@@ -122,8 +142,9 @@ pub fn constant_materials(albedo: &[[f32; 3]], roughness: &[f32]) -> Vec<Materia
     albedo.iter().zip(roughness).map(|(a, r)| backend::constant_material(*a, *r)).collect()
 }
 
-/// The flat-fitted albedos: `iterations` rounds of the mean-ratio update from `start`.
-/// `on_render` is called after each render (for progress).
+/// The flat-fitted albedos after `iterations` rounds of the mean-ratio update from `start`, and
+/// per round the largest change of a channel (|new − old| / old, over parts and channels), to
+/// show the convergence. `on_render` is called after each render (for progress).
 #[allow(clippy::too_many_arguments)]
 pub fn flat_fit(
     ctx: &mut GeometryContext,
@@ -135,9 +156,10 @@ pub fn flat_fit(
     settings: &RenderSettings,
     iterations: u32,
     on_render: &mut dyn FnMut(String),
-) -> Result<Vec<[f32; 3]>, EvalError> {
+) -> Result<(Vec<[f32; 3]>, Vec<f64>), EvalError> {
     let n = ctx.part_names().len();
     let mut albedo = start.to_vec();
+    let mut changes = Vec::new();
     // The photo side does not change between rounds.
     let mut photo_sum = vec![[0.0f64; 3]; n];
     for (v, mask) in inputs.iter().zip(masks) {
@@ -164,15 +186,19 @@ pub fn flat_fit(
                 }
             }
         }
+        let mut change = 0.0f64;
         for i in 0..n {
             for k in 0..3 {
                 // Pixel counts are equal on both sides, so the ratio of sums is that of means.
                 if render_sum[i][k] > 0.0 {
-                    let a = albedo[i][k] as f64 * photo_sum[i][k] / render_sum[i][k];
-                    albedo[i][k] = a.clamp(0.0, 1.0) as f32;
+                    let old = albedo[i][k] as f64;
+                    let new = (old * photo_sum[i][k] / render_sum[i][k]).clamp(0.0, 1.0);
+                    change = change.max((new - old).abs() / old.max(1e-6));
+                    albedo[i][k] = new as f32;
                 }
             }
         }
+        changes.push(change);
     }
-    Ok(albedo)
+    Ok((albedo, changes))
 }

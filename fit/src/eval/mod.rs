@@ -135,7 +135,7 @@ impl Default for EvalOptions {
             geometries: vec![Geometry::Model, Geometry::Truth],
             methods: vec![Method::Fitted, Method::FlatFitted, Method::PixelMedian],
             kinds: vec![ViewKind::Input, ViewKind::Novel, ViewKind::Relit],
-            flat_iterations: 3,
+            flat_iterations: 5,
             flat_spp: 16,
             max_depth: 6,
         }
@@ -209,6 +209,8 @@ pub struct Evaluation {
     pub pixel_median: Vec<[f32; 3]>,
     pub flat_albedo: Vec<[f32; 3]>,
     pub flat_roughness: Vec<f32>,
+    /// Per round of the flat fit, the largest relative change of an albedo channel.
+    pub flat_changes: Vec<f64>,
     /// Parts no input view shows (the baselines give them the median of all labelled pixels).
     pub unseen_parts: Vec<String>,
     /// The lights every method but the oracle renders under (scene order), and the true ones.
@@ -301,10 +303,11 @@ pub fn evaluate(
     let flat_settings =
         RenderSettings { spp: opts.flat_spp, seed: opts.seed, max_depth: opts.max_depth, threads: opts.threads };
     let flat_slots = fitted_radiances.slots(model.has_environment());
-    let flat_albedo = baselines::flat_fit(
+    let aligned = baselines::aligned_masks(&model, &inputs, &masks)?;
+    let (flat_albedo, flat_changes) = baselines::flat_fit(
         &mut model,
         &inputs,
-        &masks,
+        &aligned,
         &pixel_median,
         &flat_roughness,
         &flat_slots,
@@ -369,6 +372,7 @@ pub fn evaluate(
         pixel_median,
         flat_albedo,
         flat_roughness,
+        flat_changes,
         unseen_parts,
         fitted_lights,
         true_lights: truth.lights.lights.clone(),

@@ -105,6 +105,10 @@ impl Evaluation {
                 }
             }
         }
+        if !self.flat_changes.is_empty() {
+            let c: Vec<String> = self.flat_changes.iter().map(|c| format!("{:.1}%", 100.0 * c)).collect();
+            s.push_str(&format!("flat fit: largest albedo change per round {}\n", c.join(", ")));
+        }
         if !self.unseen_parts.is_empty() {
             s.push_str(&format!(
                 "parts no input view shows (baselines use the median of all labelled pixels): {}\n",
@@ -217,7 +221,7 @@ impl Evaluation {
                 "ssim": "whole image, 11x11 Gaussian window sigma 1.5, K1 0.01, K2 0.03, valid positions, mean over channels; rows average over images",
                 "relit": "each light's radiance is the method's times the truth's relit/original ratio per channel (oracle: the true relit radiances)",
                 "pixel_median": "per part, per-channel median of the linear photo colours over its labelled pixels in the input views; roughness 0.7; flat normal",
-                "flat_fitted": "constant albedo per part from the pixel median, multiplied by photo mean / render mean (linear, unclipped labelled pixels of the input views, coarse model, the fit's lights) per channel and clamped to [0, 1], flat_iterations times; roughness: the fitted material's mean over the part's input-view pixels where materials.json names the part, else 0.7",
+                "flat_fitted": "constant albedo per part from the pixel median, multiplied by photo mean / render mean per channel (linear; pixels of the input views labelled as the part, showing the part in the coarse model's G-buffer, unclipped in the photo; the fit's lights) and clamped to [0, 1], flat_iterations times; roughness: the fitted material's mean over the part's input-view pixels where materials.json names the part, else 0.7",
                 "oracle": "the true materials under the true lights",
             },
             "lights": {
@@ -228,6 +232,7 @@ impl Evaluation {
                 "pixel_median_albedo": per_part(&|i| rgb(&self.pixel_median[i])),
                 "flat_fitted_albedo": per_part(&|i| rgb(&self.flat_albedo[i])),
                 "flat_fitted_roughness": per_part(&|i| json!(self.flat_roughness[i])),
+                "flat_fit_round_changes": self.flat_changes,
                 "unseen_parts": self.unseen_parts,
             },
             "rows": self.rows.iter().map(row).collect::<Vec<_>>(),
