@@ -151,8 +151,18 @@ pub fn read_lights_file(path: &Path, ctx: &GeometryContext) -> Result<(Vec<[f32;
     }
     let mut warnings = Vec::new();
     let r = LightRadiances::from_file(path, &ctx.scene, &mut warnings)?;
-    if let Some(w) = warnings.iter().find(|w| w.contains("no radiance for light")) {
-        return Err(EvalError(format!("{w} (a lights file for eval must give every light)")));
+    // The renderer's reader gives unnamed lights unit radiance; a fit's result must name them.
+    let text = std::fs::read_to_string(path).map_err(|e| EvalError(format!("{}: {e}", path.display())))?;
+    let value: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| EvalError(format!("{}: {e}", path.display())))?;
+    let named: Vec<&str> =
+        value["lights"].as_array().map_or(Vec::new(), |a| a.iter().filter_map(|l| l["name"].as_str()).collect());
+    if let Some(missing) = ctx.scene.lights.iter().find(|l| !named.contains(&l.name.as_str())) {
+        return Err(EvalError(format!(
+            "{}: no radiance for light '{}' (eval needs every light)",
+            path.display(),
+            missing.name
+        )));
     }
     for (i, c) in r.lights.iter().chain([&r.environment]).enumerate() {
         if !c.iter().all(|x| x.is_finite() && *x >= 0.0) {
