@@ -230,7 +230,7 @@ fn bad_fit_files_are_clear_errors() {
         ),
         (r#"{"lights": [{"name": "ceiling0", "radiance_rgb": 1}]}"#, "ceiling1"),
     ] {
-        std::fs::write(&fit.lights, &text).unwrap();
+        std::fs::write(&fit.lights, text).unwrap();
         expect_error(&scene(), &fit, &opts, needle);
     }
     std::fs::write(&fit.lights, &good_lights).unwrap();
