@@ -136,7 +136,7 @@ impl Default for EvalOptions {
             methods: vec![Method::Fitted, Method::FlatFitted, Method::PixelMedian],
             kinds: vec![ViewKind::Input, ViewKind::Novel, ViewKind::Relit],
             flat_iterations: 5,
-            flat_spp: 16,
+            flat_spp: 32,
             max_depth: 6,
         }
     }
