@@ -143,8 +143,8 @@ pub fn constant_materials(albedo: &[[f32; 3]], roughness: &[f32]) -> Vec<Materia
 }
 
 /// The flat-fitted albedos after `iterations` rounds of the mean-ratio update from `start`, and
-/// per round the largest change of a channel (|new − old| / old, over parts and channels), to
-/// show the convergence. `on_render` is called after each render (for progress).
+/// per round the largest change of a channel (|new − old| / old, over parts and channels) with
+/// the part it happened on, to show the convergence. `on_render` is called after each render (for progress).
 #[allow(clippy::too_many_arguments)]
 pub fn flat_fit(
     ctx: &mut GeometryContext,
@@ -156,7 +156,7 @@ pub fn flat_fit(
     settings: &RenderSettings,
     iterations: u32,
     on_render: &mut dyn FnMut(String),
-) -> Result<(Vec<[f32; 3]>, Vec<f64>), EvalError> {
+) -> Result<(Vec<[f32; 3]>, Vec<(f64, String)>), EvalError> {
     let n = ctx.part_names().len();
     let mut albedo = start.to_vec();
     let mut changes = Vec::new();
@@ -186,14 +186,17 @@ pub fn flat_fit(
                 }
             }
         }
-        let mut change = 0.0f64;
+        let mut change = (0.0f64, String::new());
         for i in 0..n {
             for k in 0..3 {
                 // Pixel counts are equal on both sides, so the ratio of sums is that of means.
                 if render_sum[i][k] > 0.0 {
                     let old = albedo[i][k] as f64;
                     let new = (old * photo_sum[i][k] / render_sum[i][k]).clamp(0.0, 1.0);
-                    change = change.max((new - old).abs() / old.max(1e-6));
+                    let c = (new - old).abs() / old.max(1e-6);
+                    if c > change.0 {
+                        change = (c, ctx.part_names()[i].clone());
+                    }
                     albedo[i][k] = new as f32;
                 }
             }

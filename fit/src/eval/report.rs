@@ -106,7 +106,8 @@ impl Evaluation {
             }
         }
         if !self.flat_changes.is_empty() {
-            let c: Vec<String> = self.flat_changes.iter().map(|c| format!("{:.1}%", 100.0 * c)).collect();
+            let c: Vec<String> =
+                self.flat_changes.iter().map(|(c, part)| format!("{:.1}% ({part})", 100.0 * c)).collect();
             s.push_str(&format!("flat fit: largest albedo change per round {}\n", c.join(", ")));
         }
         if !self.unseen_parts.is_empty() {
@@ -232,7 +233,11 @@ impl Evaluation {
                 "pixel_median_albedo": per_part(&|i| rgb(&self.pixel_median[i])),
                 "flat_fitted_albedo": per_part(&|i| rgb(&self.flat_albedo[i])),
                 "flat_fitted_roughness": per_part(&|i| json!(self.flat_roughness[i])),
-                "flat_fit_round_changes": self.flat_changes,
+                "flat_fit_round_changes": self
+                    .flat_changes
+                    .iter()
+                    .map(|(c, part)| json!({"largest_relative_change": num(*c), "part": part}))
+                    .collect::<Vec<_>>(),
                 "unseen_parts": self.unseen_parts,
             },
             "rows": self.rows.iter().map(row).collect::<Vec<_>>(),
