@@ -142,6 +142,9 @@ pub fn constant_materials(albedo: &[[f32; 3]], roughness: &[f32]) -> Vec<Materia
     albedo.iter().zip(roughness).map(|(a, r)| backend::constant_material(*a, *r)).collect()
 }
 
+/// Flat-fitted albedos per part and, per round, the largest relative change and its part.
+pub type FlatFit = (Vec<[f32; 3]>, Vec<(f64, String)>);
+
 /// The flat-fitted albedos after `iterations` rounds of the mean-ratio update from `start`, and
 /// per round the largest change of a channel (|new − old| / old, over parts and channels) with
 /// the part it happened on, to show the convergence. `on_render` is called after each render (for progress).
@@ -156,7 +159,7 @@ pub fn flat_fit(
     settings: &RenderSettings,
     iterations: u32,
     on_render: &mut dyn FnMut(String),
-) -> Result<(Vec<[f32; 3]>, Vec<(f64, String)>), EvalError> {
+) -> Result<FlatFit, EvalError> {
     let n = ctx.part_names().len();
     let mut albedo = start.to_vec();
     let mut changes = Vec::new();
