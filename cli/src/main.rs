@@ -7,6 +7,7 @@
 mod bake;
 mod bench;
 mod compile;
+mod eval;
 mod fit;
 mod library;
 mod render;
@@ -36,6 +37,8 @@ enum Command {
     Render(render::Args),
     /// Fit a procedural material to every part of a scene from its photos.
     Fit(fit::Args),
+    /// Evaluate a fit against a dev scene's ground truth, beside the baselines.
+    Eval(eval::Args),
 }
 
 /// An error already worth showing to the user as is.
@@ -70,6 +73,7 @@ fn main() -> ExitCode {
         Command::Library(args) => library::run(args),
         Command::Render(args) => render::run(args),
         Command::Fit(args) => fit::run(args),
+        Command::Eval(args) => eval::run(args),
     };
     match result {
         Ok(code) => code,

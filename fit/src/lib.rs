@@ -13,6 +13,7 @@
 
 pub mod align;
 pub mod error;
+pub mod eval;
 pub mod features;
 pub mod layer;
 pub mod lighting;

@@ -1,0 +1,315 @@
+//! The evaluation's outputs: the Table-2-style text table, the JSON (`photoscene-eval/1`), and
+//! the eval folder (eval.json + renders/<geometry>/<method>/<view>.png), written whole or not at
+//! all.
+
+use std::path::{Path, PathBuf};
+
+use serde_json::{json, Value};
+
+use super::backend;
+use super::{EvalError, Evaluation, Geometry, Method, Row, ViewKind};
+
+/// The ratio rows of the table: numerator / denominator per metric.
+const RATIOS: [(Method, Method); 4] = [
+    (Method::Fitted, Method::PixelMedian),
+    (Method::Fitted, Method::FlatFitted),
+    (Method::FlatFitted, Method::PixelMedian),
+    (Method::Oracle, Method::PixelMedian),
+];
+
+/// Per metric ratio of two rows; SSIM is compared as 1 − SSIM (lower is better, like the rest).
+pub fn ratio(num: &Row, den: &Row) -> [f64; 5] {
+    [
+        num.rmse / den.rmse,
+        num.mean_colour / den.mean_colour,
+        num.colour_w1 / den.colour_w1,
+        num.contrast_w1 / den.contrast_w1,
+        (1.0 - num.ssim) / (1.0 - den.ssim),
+    ]
+}
+
+fn num(x: f64) -> Value {
+    if x.is_finite() {
+        json!(x)
+    } else {
+        Value::Null
+    }
+}
+
+fn rgb(c: &[f32; 3]) -> Value {
+    json!([c[0], c[1], c[2]])
+}
+
+fn render_path(geometry: Geometry, method: Method, view: &str) -> PathBuf {
+    Path::new("renders").join(geometry.name()).join(method.slug()).join(format!("{view}.png"))
+}
+
+impl Evaluation {
+    /// The table printed by `psc eval`: per geometry and view kind, one row per method and one
+    /// per ratio.
+    pub fn table(&self) -> String {
+        let mut s = String::new();
+        s.push_str(&format!(
+            "psc eval: {} ({} spp, seed {}, {} renders, {:.1} s wall)\n",
+            self.scene.display(),
+            self.options.spp,
+            self.options.seed,
+            self.renders,
+            self.wall_seconds
+        ));
+        s.push_str("per part (sRGB, parts >= 200 px, averaged over image x part); SSIM per image; ratio rows: SSIM as 1-SSIM\n");
+        s.push_str(&format!(
+            "{:<8} {:<6} {:<23} {:>7} {:>7} {:>8} {:>8} {:>7} {:>6} {:>5}\n",
+            "geometry", "views", "method", "RMSE", "mean", "colourW1", "contrW1", "SSIM", "parts", "imgs"
+        ));
+        let mut keys: Vec<(Geometry, ViewKind)> = self.rows.iter().map(|r| (r.geometry, r.kind)).collect();
+        keys.dedup();
+        for (geometry, kind) in keys {
+            let mut first = true;
+            let mut label = || {
+                let l = if first {
+                    format!("{:<8} {:<6}", geometry.name(), kind.name())
+                } else {
+                    format!("{:<8} {:<6}", "", "")
+                };
+                first = false;
+                l
+            };
+            for r in self.rows.iter().filter(|r| (r.geometry, r.kind) == (geometry, kind)) {
+                s.push_str(&format!(
+                    "{} {:<23} {:>7.4} {:>7.4} {:>8.4} {:>8.4} {:>7.4} {:>6} {:>5}\n",
+                    label(),
+                    r.method.name(),
+                    r.rmse,
+                    r.mean_colour,
+                    r.colour_w1,
+                    r.contrast_w1,
+                    r.ssim,
+                    r.parts,
+                    r.images
+                ));
+            }
+            for (a, b) in RATIOS {
+                if let (Some(n), Some(d)) = (self.row(geometry, kind, a), self.row(geometry, kind, b)) {
+                    let q = ratio(n, d);
+                    s.push_str(&format!(
+                        "{} {:<23} {:>6.2}x {:>6.2}x {:>7.2}x {:>7.2}x {:>6.2}x\n",
+                        label(),
+                        format!("{} / {}", a.name(), b.name()),
+                        q[0],
+                        q[1],
+                        q[2],
+                        q[3],
+                        q[4]
+                    ));
+                }
+            }
+        }
+        if !self.flat_changes.is_empty() {
+            let c: Vec<String> =
+                self.flat_changes.iter().map(|(c, part)| format!("{:.1}% ({part})", 100.0 * c)).collect();
+            s.push_str(&format!("flat fit: largest albedo change per round {}\n", c.join(", ")));
+        }
+        if !self.unseen_parts.is_empty() {
+            s.push_str(&format!(
+                "parts no input view shows (baselines use the median of all labelled pixels): {}\n",
+                self.unseen_parts.join(", ")
+            ));
+        }
+        let times: Vec<String> = self.timings.iter().map(|(n, t)| format!("{n} {t:.1} s")).collect();
+        s.push_str(&format!("time: {} (wall {:.1} s)\n", times.join(", "), self.wall_seconds));
+        s
+    }
+
+    /// The evaluation as JSON: options, definitions, baselines, rows, ratios, per-image and
+    /// per-part numbers, timings.
+    pub fn to_json(&self) -> Value {
+        let row = |r: &Row| {
+            json!({
+                "geometry": r.geometry.name(), "views": r.kind.name(), "method": r.method.name(),
+                "rmse": num(r.rmse), "mean_colour": num(r.mean_colour), "colour_w1": num(r.colour_w1),
+                "contrast_w1": num(r.contrast_w1), "ssim": num(r.ssim), "parts": r.parts, "images": r.images,
+            })
+        };
+        let mut ratios = Vec::new();
+        for r in self.rows.iter().filter(|r| r.method == Method::PixelMedian) {
+            for (a, b) in RATIOS {
+                if let (Some(n), Some(d)) = (self.row(r.geometry, r.kind, a), self.row(r.geometry, r.kind, b)) {
+                    let q = ratio(n, d);
+                    ratios.push(json!({
+                        "geometry": r.geometry.name(), "views": r.kind.name(),
+                        "numerator": a.name(), "denominator": b.name(),
+                        "rmse": num(q[0]), "mean_colour": num(q[1]), "colour_w1": num(q[2]),
+                        "contrast_w1": num(q[3]), "one_minus_ssim": num(q[4]),
+                    }));
+                }
+            }
+        }
+        let images: Vec<Value> = self
+            .images
+            .iter()
+            .map(|im| {
+                let parts: Vec<Value> = im
+                    .parts
+                    .iter()
+                    .map(|p| {
+                        json!({
+                            "part": p.part, "pixels": p.pixels, "rmse": num(p.rmse),
+                            "mean_colour": num(p.mean_colour), "colour_w1": num(p.colour_w1),
+                            "contrast_w1": p.contrast_w1.map_or(Value::Null, num),
+                        })
+                    })
+                    .collect();
+                json!({
+                    "geometry": im.geometry.name(), "method": im.method.name(), "views": im.kind.name(),
+                    "view": im.view, "ssim": im.ssim.map_or(Value::Null, num),
+                    "render": render_path(im.geometry, im.method, &im.view).to_string_lossy(),
+                    "parts": parts,
+                })
+            })
+            .collect();
+        // Per (geometry, kind, method, part): the part's numbers averaged over the images.
+        let mut by_part: std::collections::BTreeMap<(Geometry, ViewKind, Method, &str), Vec<&super::PartMetrics>> =
+            Default::default();
+        for im in &self.images {
+            for p in &im.parts {
+                by_part.entry((im.geometry, im.kind, im.method, p.part.as_str())).or_default().push(p);
+            }
+        }
+        let part_rows: Vec<Value> = by_part
+            .iter()
+            .map(|((g, k, m, part), ps)| {
+                let avg = |f: &dyn Fn(&super::PartMetrics) -> Option<f64>| {
+                    let v: Vec<f64> = ps.iter().filter_map(|p| f(p)).collect();
+                    num(if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 })
+                };
+                json!({
+                    "geometry": g.name(), "views": k.name(), "method": m.name(), "part": part,
+                    "images": ps.len(), "pixels": ps.iter().map(|p| p.pixels).sum::<usize>(),
+                    "rmse": avg(&|p| Some(p.rmse)), "mean_colour": avg(&|p| Some(p.mean_colour)),
+                    "colour_w1": avg(&|p| Some(p.colour_w1)), "contrast_w1": avg(&|p| p.contrast_w1),
+                })
+            })
+            .collect();
+        let per_part = |values: &dyn Fn(usize) -> Value| -> Value {
+            self.part_names
+                .iter()
+                .enumerate()
+                .map(|(i, n)| (n.clone(), values(i)))
+                .collect::<serde_json::Map<_, _>>()
+                .into()
+        };
+        let o = &self.options;
+        json!({
+            "format": "photoscene-eval/1",
+            "scene": self.scene.to_string_lossy(),
+            "materials": self.fit.materials.to_string_lossy(),
+            "lights": self.fit.lights.to_string_lossy(),
+            "options": {
+                "spp": o.spp, "seed": o.seed, "max_depth": o.max_depth,
+                "methods": o.methods.iter().map(|m| m.name()).collect::<Vec<_>>(),
+                "views": o.kinds.iter().map(|k| k.name()).collect::<Vec<_>>(),
+                "geometries": o.geometries.iter().map(|g| g.name()).collect::<Vec<_>>(),
+                "flat_iterations": o.flat_iterations, "flat_spp": o.flat_spp,
+            },
+            "definitions": {
+                "values": "sRGB-encoded values in [0, 1]; renders encoded with the sRGB transfer and clamped",
+                "parts": "per image, the pixels of each part in the truth label image; parts with >= 200 pixels; rows average over every (image, part) pair of the view kind",
+                "rmse": "sqrt(mean over the part's pixels and channels of (render - truth)^2)",
+                "mean_colour": "Euclidean norm of the difference of the part's mean RGB colours / sqrt(3)",
+                "colour_w1": "1-Wasserstein distance of the part's value distributions, per channel, averaged over channels",
+                "contrast_w1": "1-Wasserstein distance of the distributions of Rec. 709 luma gradient magnitudes sqrt(dx^2 + dy^2) (forward differences, pixels whose right and lower neighbours are in the part)",
+                "ssim": "whole image, 11x11 Gaussian window sigma 1.5, K1 0.01, K2 0.03, valid positions, mean over channels; rows average over images",
+                "relit": "each light's radiance is the method's times the truth's relit/original ratio per channel (oracle: the true relit radiances)",
+                "pixel_median": "per part, per-channel median of the linear photo colours over its labelled pixels in the input views; roughness 0.7; flat normal",
+                "flat_fitted": "constant albedo per part from the pixel median, multiplied by photo mean / render mean per channel (linear; pixels of the input views labelled as the part, showing the part in the coarse model's G-buffer, unclipped in the photo; the fit's lights) and clamped to [0, 1], flat_iterations times; roughness: the fitted material's mean over the part's input-view pixels where materials.json names the part, else 0.7",
+                "oracle": "the true materials under the true lights",
+            },
+            "lights": {
+                "fitted": self.fitted_lights.iter().map(rgb).collect::<Vec<_>>(),
+                "true": self.true_lights.iter().map(rgb).collect::<Vec<_>>(),
+            },
+            "baselines": {
+                "pixel_median_albedo": per_part(&|i| rgb(&self.pixel_median[i])),
+                "flat_fitted_albedo": per_part(&|i| rgb(&self.flat_albedo[i])),
+                "flat_fitted_roughness": per_part(&|i| json!(self.flat_roughness[i])),
+                "flat_fit_round_changes": self
+                    .flat_changes
+                    .iter()
+                    .map(|(c, part)| json!({"largest_relative_change": num(*c), "part": part}))
+                    .collect::<Vec<_>>(),
+                "unseen_parts": self.unseen_parts,
+            },
+            "rows": self.rows.iter().map(row).collect::<Vec<_>>(),
+            "ratios": ratios,
+            "parts": part_rows,
+            "images": images,
+            "warnings": self.warnings,
+            "timings_s": self.timings.iter().map(|(n, t)| json!({"stage": n, "seconds": t})).collect::<Vec<_>>(),
+            "renders": self.renders,
+            "wall_seconds": self.wall_seconds,
+        })
+    }
+}
+
+/// Remove a folder tree, ignoring errors (clean-up of our own temporaries).
+fn remove_quietly(dir: &Path) {
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+/// Write `eval_dir/eval.json` and `eval_dir/renders/…` as a whole: everything goes to a hidden
+/// sibling folder first, which then replaces `eval_dir` (a previous evaluation there is removed).
+/// With `json_copy`, the JSON is also written there. On any error nothing is left behind.
+pub fn write_outputs(eval: &Evaluation, eval_dir: &Path, json_copy: Option<&Path>) -> Result<(), EvalError> {
+    let parent = match eval_dir.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    if !parent.is_dir() {
+        return Err(EvalError(format!("{}: no such folder", parent.display())));
+    }
+    let name = eval_dir.file_name().ok_or_else(|| EvalError(format!("{}: not a folder path", eval_dir.display())))?;
+    let tmp = parent.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
+    let old = parent.join(format!(".{}.old{}", name.to_string_lossy(), std::process::id()));
+    remove_quietly(&tmp);
+    let text = serde_json::to_string_pretty(&eval.to_json()).expect("JSON values serialise") + "\n";
+    let fill = || -> Result<(), EvalError> {
+        let io = |p: &Path, e: std::io::Error| EvalError(format!("{}: {e}", p.display()));
+        std::fs::create_dir_all(&tmp).map_err(|e| io(&tmp, e))?;
+        for im in &eval.images {
+            let path = tmp.join(render_path(im.geometry, im.method, &im.view));
+            let dir = path.parent().expect("render paths have folders");
+            std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+            backend::write_png(&path, im.width, im.height, &im.render)?;
+        }
+        backend::atomic_write(&tmp.join("eval.json"), text.as_bytes())
+    };
+    if let Err(e) = fill() {
+        remove_quietly(&tmp);
+        return Err(e);
+    }
+    if let Some(path) = json_copy {
+        if let Err(e) = backend::atomic_write(path, text.as_bytes()) {
+            remove_quietly(&tmp);
+            return Err(e);
+        }
+    }
+    let had_old = eval_dir.exists();
+    if had_old {
+        if let Err(e) = std::fs::rename(eval_dir, &old) {
+            remove_quietly(&tmp);
+            return Err(EvalError(format!("{}: cannot replace it: {e}", eval_dir.display())));
+        }
+    }
+    if let Err(e) = std::fs::rename(&tmp, eval_dir) {
+        if had_old {
+            let _ = std::fs::rename(&old, eval_dir);
+        }
+        remove_quietly(&tmp);
+        return Err(EvalError(format!("{}: {e}", eval_dir.display())));
+    }
+    if had_old {
+        remove_quietly(&old);
+    }
+    Ok(())
+}
