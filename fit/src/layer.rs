@@ -78,7 +78,7 @@ pub struct Sampling {
 
 impl Default for Sampling {
     fn default() -> Self {
-        Sampling { density: 160.0, max_per_axis: 3 }
+        Sampling { density: 160.0, max_per_axis: 4 }
     }
 }
 
