@@ -52,6 +52,10 @@ pub struct AlignedPart {
     pub model_pixels: usize,
     /// Photo pixel indices that count, in raster order.
     pub usable: Vec<u32>,
+    /// Pixels that pass every test but are clipped in the photo: they do not count for colour
+    /// and statistics (their value is unknown), but they are part of the pattern the feature
+    /// loss compares (a render clips the same way), which holes in the mask would carve up.
+    pub clipped: Vec<u32>,
     pub dropped: Dropped,
 }
 
@@ -88,6 +92,7 @@ fn align_part(obs: &ViewObservation, view: usize, part: u32) -> Option<AlignedPa
     };
 
     let mut usable = Vec::new();
+    let mut clipped = Vec::new();
     let mut dropped = Dropped::default();
     let inside = |x: i64, y: i64| x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h;
     for i in 0..w * h {
@@ -102,10 +107,6 @@ fn align_part(obs: &ViewObservation, view: usize, part: u32) -> Option<AlignedPa
             dropped.boundary += 1;
             continue;
         }
-        if obs.photo.clipped(i) {
-            dropped.clipped += 1;
-            continue;
-        }
         let Some(j) = model_pixel(&warp, x as f32 + 0.5, y as f32 + 0.5, w, h) else {
             dropped.other_part += 1;
             continue;
@@ -118,9 +119,14 @@ fn align_part(obs: &ViewObservation, view: usize, part: u32) -> Option<AlignedPa
             dropped.depth_edge += 1;
             continue;
         }
-        usable.push(i as u32);
+        if obs.photo.clipped(i) {
+            dropped.clipped += 1;
+            clipped.push(i as u32);
+        } else {
+            usable.push(i as u32);
+        }
     }
-    Some(AlignedPart { part, view, warp, iou_initial, iou, photo_pixels, model_pixels, usable, dropped })
+    Some(AlignedPart { part, view, warp, iou_initial, iou, photo_pixels, model_pixels, usable, clipped, dropped })
 }
 
 /// The model pixel under photo raster position (x, y), if inside the image.

@@ -58,8 +58,12 @@ pub struct PartView {
     pub origin: [usize; 2],
     pub factor: usize,
     pub pixels: Vec<FitPixel>,
-    /// Per crop pixel, how much it counts (0 outside the usable mask).
+    /// Per crop pixel, how much it counts for colour and statistics (0 outside the usable
+    /// mask and where the photo is clipped).
     pub weight: Vec<f32>,
+    /// Per crop pixel, how much it counts for the pattern (the feature loss): as `weight`, but
+    /// clipped photo pixels count (the render clips the same way).
+    pub pattern_weight: Vec<f32>,
     /// The photo, sRGB-encoded, per crop pixel (0 where the weight is 0).
     pub target: Vec<[f32; 3]>,
     /// The photo's linear values, per crop pixel.
@@ -327,6 +331,9 @@ impl PartView {
         let mut photo: [Vec<f32>; 3] = Default::default();
         let mut render: [Vec<f32>; 3] = Default::default();
         for (px, l) in self.pixels.iter().zip(&ws.linear) {
+            if self.weight[px.crop_index as usize] <= 0.0 {
+                continue;
+            }
             let t = self.target_linear[px.crop_index as usize];
             for c in 0..3 {
                 photo[c].push(t[c] / self.exposure);

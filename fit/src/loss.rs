@@ -74,7 +74,7 @@ impl PartLoss {
         config: &FeatureConfig,
         scratch: &mut Scratch,
     ) -> Result<PartLoss, FitError> {
-        let region = Region { width: view.width, height: view.height, weight: view.weight.clone() };
+        let region = Region { width: view.width, height: view.height, weight: view.pattern_weight.clone() };
         let features = FeatureLoss::new(config, &region).map_err(feature_error)?;
         let target_features = features.describe(&view.target, scratch).map_err(feature_error)?;
         Ok(PartLoss {

@@ -39,16 +39,27 @@ pub fn part_view(
         let (x, y) = (i as usize % w, i as usize / w);
         (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
     }
+    // Clipped pixels inside the window join the pattern (not the statistics).
+    let inside = |i: &u32| {
+        let (x, y) = (*i as usize % w, *i as usize / w);
+        (x0..=x1).contains(&x) && (y0..=y1).contains(&y)
+    };
+    let clipped: Vec<u32> = aligned.clipped.iter().copied().filter(inside).collect();
     let factor = 1;
     let (cw, ch) = ((x1 - x0 + 1).div_ceil(factor), (y1 - y0 + 1).div_ceil(factor));
-    // Per fit pixel: usable photo pixels, their linear sum and their centroid.
+    // Per fit pixel: usable and clipped photo pixels, their linear sum and their centroid.
     let mut count = vec![0u32; cw * ch];
+    let mut count_clipped = vec![0u32; cw * ch];
     let mut sum = vec![[0.0f64; 3]; cw * ch];
     let mut centre = vec![[0.0f64; 2]; cw * ch];
-    for &i in usable {
+    for (&i, is_clipped) in usable.iter().map(|i| (i, false)).chain(clipped.iter().map(|i| (i, true))) {
         let (x, y) = (i as usize % w, i as usize / w);
         let c = (y - y0) / factor * cw + (x - x0) / factor;
-        count[c] += 1;
+        if is_clipped {
+            count_clipped[c] += 1;
+        } else {
+            count[c] += 1;
+        }
         for k in 0..3 {
             sum[c][k] += f64::from(obs.photo.linear[i as usize][k]);
         }
@@ -56,15 +67,16 @@ pub fn part_view(
         centre[c][1] += y as f64 + 0.5;
     }
     let mut weight = vec![0.0f32; cw * ch];
+    let mut pattern_weight = vec![0.0f32; cw * ch];
     let mut target = vec![[0.0f32; 3]; cw * ch];
     let mut target_linear = vec![[0.0f32; 3]; cw * ch];
     let mut pixels = Vec::new();
     let step = [factor as f32 / aligned.warp.scale[0], factor as f32 / aligned.warp.scale[1]];
     for c in 0..cw * ch {
-        if count[c] == 0 {
+        if count[c] + count_clipped[c] == 0 {
             continue;
         }
-        let n = f64::from(count[c]);
+        let n = f64::from(count[c] + count_clipped[c]);
         let photo_pos = [(centre[c][0] / n) as f32, (centre[c][1] / n) as f32];
         let [gx, gy] = aligned.warp.to_model(photo_pos);
         let Some(surface) = surface_at(geometry, camera, gx, gy, step[0], step[1]) else { continue };
@@ -74,6 +86,7 @@ pub fn part_view(
         let Some(light) = grid.at(gx, gy, aligned.part) else { continue };
         let linear = sum[c].map(|s| (s / n) as f32);
         weight[c] = count[c] as f32 / (factor * factor) as f32;
+        pattern_weight[c] = n as f32 / (factor * factor) as f32;
         target_linear[c] = linear;
         target[c] = linear.map(linear_to_srgb);
         pixels.push(FitPixel {
@@ -89,7 +102,18 @@ pub fn part_view(
     if pixels.is_empty() {
         return None;
     }
-    Some(PartView { width: cw, height: ch, origin: [x0, y0], factor, pixels, weight, target, target_linear, exposure })
+    Some(PartView {
+        width: cw,
+        height: ch,
+        origin: [x0, y0],
+        factor,
+        pixels,
+        weight,
+        pattern_weight,
+        target,
+        target_linear,
+        exposure,
+    })
 }
 
 /// The usable pixels inside the window chosen for a budget of `max_pixels` (all of them when
