@@ -7,9 +7,11 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
+use psc_base::SplitMix64;
 use psc_compiler::{compile_files, CompiledGraph, Options};
-use psc_runtime::bake::{self, Rng};
+use psc_runtime::bake;
 use psc_runtime::library::{default_library_root, psg_files, Material};
+use psc_runtime::params::ParamSpace;
 
 use crate::Failure;
 
@@ -76,14 +78,15 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         return Err(Failure(format!("--size {} must be between 1 and 16384", args.size)));
     }
     let graph = load_graph(&args.graph, args.name.as_deref(), args.lib.as_deref())?;
+    let space = ParamSpace::new(&graph.info);
     let params = match &args.params {
         Some(p) => {
             let text = std::fs::read_to_string(p).map_err(|e| Failure(format!("cannot read {}: {e}", p.display())))?;
             let json: serde_json::Value =
                 serde_json::from_str(&text).map_err(|e| Failure(format!("{}: not valid JSON: {e}", p.display())))?;
-            bake::params_from_json(&graph.info, &json).map_err(|e| Failure(format!("{}: {e}", p.display())))?
+            space.from_json(&json).map_err(|e| Failure(format!("{}: {e}", p.display())))?
         }
-        None => graph.info.default_params(),
+        None => space.defaults(),
     };
     let material =
         Material::new(graph).map_err(|e| Failure(format!("cannot compile the graph to native code: {e}")))?;
@@ -91,9 +94,9 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     let eval = |p: &[f32], u: &[f32], v: &[f32]| material.kernel.eval(p, u, v).map_err(|e| e.to_string());
 
     let mut jobs = vec![(info.name.clone(), params)];
-    let mut rng = Rng(args.seed);
+    let mut rng = SplitMix64::new(args.seed);
     for k in 0..args.random {
-        jobs.push((format!("{}_random{:02}", info.name, k + 1), bake::random_params(info, &mut rng)));
+        jobs.push((format!("{}_random{:02}", info.name, k + 1), space.random(&mut rng)));
     }
     for (stem, p) in &jobs {
         let started = Instant::now();
@@ -113,7 +116,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         let written = bake::write_maps(&maps, &args.out, stem)
             .map_err(|e| Failure(format!("cannot write to {}: {e}", args.out.display())))?;
         let json_path = args.out.join(format!("{stem}_params.json"));
-        let json = serde_json::to_string_pretty(&bake::params_to_json(info, p))?;
+        let json = serde_json::to_string_pretty(&space.to_json(p)?)?;
         bake::write_atomic(&json_path, |tmp| std::fs::write(tmp, &json))
             .map_err(|e| Failure(format!("cannot write {}: {e}", json_path.display())))?;
         eprintln!(

@@ -6,8 +6,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use psc_runtime::bake::{self, Rng};
+use psc_base::SplitMix64;
+use psc_runtime::bake;
 use psc_runtime::library::{default_library_root, Library};
+use psc_runtime::params::ParamSpace;
 use psc_runtime::sheet::{self, Cell};
 
 use crate::Failure;
@@ -110,9 +112,10 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         for m in &materials {
             let info = &m.graph.info;
             let eval = |p: &[f32], u: &[f32], v: &[f32]| m.kernel.eval(p, u, v).map_err(|e| e.to_string());
-            let mut rng = Rng(args.seed ^ hash_name(&info.name));
+            let space = ParamSpace::new(info);
+            let mut rng = SplitMix64::new(args.seed ^ hash_name(&info.name));
             for k in 0..=args.variants {
-                let params = if k == 0 { info.default_params() } else { bake::random_params(info, &mut rng) };
+                let params = if k == 0 { space.defaults() } else { space.random(&mut rng) };
                 let maps = bake::bake(&eval, &params, args.size).map_err(Failure)?;
                 let label = if k == 0 { info.name.clone() } else { format!("{} #{k}", info.category) };
                 cells.push(Cell { label, maps });

@@ -8,7 +8,7 @@
 //!                "albedo_scale": [1, 1, 1], "roughness_scale": 1 },
 //!     "walls": { "graph": "painted_wall" } } }
 //! ```
-//! `params` has the format of `psc bake --params` ([`crate::bake::params_from_json`]):
+//! `params` has the format of `psc bake --params` ([`crate::params::ParamSpace::from_json`]):
 //! parameters not given keep their defaults; colours are linear `[r, g, b]` or
 //! `{"srgb": [r, g, b]}`; every value is checked against the parameter's range. Parts not listed
 //! keep the scene's own (MTL) material.
@@ -20,9 +20,9 @@ use std::sync::Arc;
 use psc_render::material::MaterialBinding;
 use serde::Deserialize;
 
-use crate::bake::params_from_json;
 use crate::library::Library;
 use crate::material::ProceduralMaterial;
+use crate::params::ParamSpace;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -76,7 +76,7 @@ pub fn apply_assignment(
             let names: Vec<&str> = library.names().collect();
             at(format!("no graph `{}` in the library (graphs: {})", a.graph, names.join(", ")))
         })?;
-        let params = params_from_json(&material.graph.info, &a.params).map_err(at)?;
+        let params = ParamSpace::new(&material.graph.info).from_json(&a.params).map_err(|e| at(e.to_string()))?;
         let procedural = ProceduralMaterial::new(material.clone(), params).map_err(at)?;
         let uv_transform = uv_transform(a).map_err(at)?;
         let albedo_scale = a.albedo_scale.unwrap_or([1.0; 3]);

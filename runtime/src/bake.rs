@@ -12,8 +12,6 @@
 use std::io;
 use std::path::{Path, PathBuf};
 
-use psc_compiler::{GraphInfo, ParamKind};
-
 use crate::kernel::grid_uv;
 
 /// Evaluates a graph's forward program at a batch of points: `(params, u, v)` to the nine
@@ -177,110 +175,4 @@ pub fn write_maps(maps: &Maps, dir: &Path, stem: &str) -> io::Result<Vec<PathBuf
         written.push(p);
     }
     Ok(written)
-}
-
-/// A small deterministic generator (SplitMix64) for random parameter variants.
-#[derive(Clone, Debug)]
-pub struct Rng(pub u64);
-
-impl Rng {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    pub fn next_f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 * (1.0 / 16_777_216.0)
-    }
-}
-
-/// A random parameter vector: continuous parameters uniform over their range, discrete ones
-/// uniform over their integers, colours the default scaled by 0.7–1.3 in sRGB plus up to ±0.08
-/// per channel (so that variants stay plausible members of the material's family).
-pub fn random_params(info: &GraphInfo, rng: &mut Rng) -> Vec<f32> {
-    let mut out = info.default_params();
-    for p in &info.params {
-        match p.kind {
-            ParamKind::Continuous { min, max } => out[p.slot] = min + (max - min) * rng.next_f32(),
-            ParamKind::Discrete { min, max } => {
-                let span = (max - min + 1) as u64;
-                out[p.slot] = (min + (rng.next_u64() % span) as i64) as f32;
-            }
-            ParamKind::Color => {
-                // A common brightness change and a smaller independent shift per channel.
-                let scale = 0.7 + 0.6 * rng.next_f32();
-                for c in 0..3 {
-                    let s = linear_to_srgb(p.default[c]) * scale + 0.16 * (rng.next_f32() - 0.5);
-                    out[p.slot + c] = srgb_to_linear(s);
-                }
-            }
-        }
-    }
-    out
-}
-
-/// Reads a parameter file: a JSON object mapping parameter names to numbers (continuous and
-/// discrete) or to `[r, g, b]` (colours, linear) or `{"srgb": [r, g, b]}`. Parameters not
-/// named keep their defaults; unknown names and out-of-range values are errors.
-pub fn params_from_json(info: &GraphInfo, json: &serde_json::Value) -> Result<Vec<f32>, String> {
-    let obj = json.as_object().ok_or("the parameter file must hold a JSON object")?;
-    let mut out = info.default_params();
-    for (name, value) in obj {
-        let p = info.param(name).ok_or_else(|| {
-            let names: Vec<&str> = info.params.iter().map(|p| p.name.as_str()).collect();
-            format!("graph `{}` has no parameter `{name}` (it has: {})", info.name, names.join(", "))
-        })?;
-        match p.kind {
-            ParamKind::Continuous { min, max } => {
-                let x = value.as_f64().ok_or_else(|| format!("`{name}` must be a number"))? as f32;
-                if !(min..=max).contains(&x) {
-                    return Err(format!("`{name}` = {x} is outside its range [{min}, {max}]"));
-                }
-                out[p.slot] = x;
-            }
-            ParamKind::Discrete { min, max } => {
-                let x = value.as_f64().ok_or_else(|| format!("`{name}` must be an integer"))?;
-                if x.fract() != 0.0 || x < min as f64 || x > max as f64 {
-                    return Err(format!("`{name}` = {x} must be an integer in [{min}, {max}]"));
-                }
-                out[p.slot] = x as f32;
-            }
-            ParamKind::Color => {
-                let (arr, srgb) = match value {
-                    serde_json::Value::Object(o) if o.contains_key("srgb") => (&o["srgb"], true),
-                    v => (v, false),
-                };
-                let arr = arr
-                    .as_array()
-                    .filter(|a| a.len() == 3)
-                    .ok_or_else(|| format!("`{name}` must be [r, g, b] or {{\"srgb\": [r, g, b]}}"))?;
-                for (c, x) in arr.iter().enumerate() {
-                    let x = x.as_f64().ok_or_else(|| format!("`{name}` must hold numbers"))? as f32;
-                    if !(0.0..=1.0).contains(&x) {
-                        return Err(format!("`{name}` channel {c} = {x} is outside [0, 1]"));
-                    }
-                    out[p.slot + c] = if srgb { srgb_to_linear(x) } else { x };
-                }
-            }
-        }
-    }
-    Ok(out)
-}
-
-/// The parameter vector as a JSON object in the format [`params_from_json`] reads (colours as
-/// linear `[r, g, b]`), for writing next to random variants.
-pub fn params_to_json(info: &GraphInfo, params: &[f32]) -> serde_json::Value {
-    let mut obj = serde_json::Map::new();
-    for p in &info.params {
-        let v = match p.kind {
-            ParamKind::Color => serde_json::json!([params[p.slot], params[p.slot + 1], params[p.slot + 2]]),
-            ParamKind::Discrete { .. } => serde_json::json!(params[p.slot] as i64),
-            ParamKind::Continuous { .. } => serde_json::json!(params[p.slot]),
-        };
-        obj.insert(p.name.clone(), v);
-    }
-    serde_json::Value::Object(obj)
 }

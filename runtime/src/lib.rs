@@ -10,4 +10,5 @@ pub mod bake;
 pub mod kernel;
 pub mod library;
 pub mod material;
+pub mod params;
 pub mod sheet;
