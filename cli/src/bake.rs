@@ -81,9 +81,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     let space = ParamSpace::new(&graph.info);
     let params = match &args.params {
         Some(p) => {
-            let text = std::fs::read_to_string(p).map_err(|e| Failure(format!("cannot read {}: {e}", p.display())))?;
-            let json: serde_json::Value =
-                serde_json::from_str(&text).map_err(|e| Failure(format!("{}: not valid JSON: {e}", p.display())))?;
+            let json = psc_runtime::json::read_file(p)?;
             space.from_json(&json).map_err(|e| Failure(format!("{}: {e}", p.display())))?
         }
         None => space.defaults(),

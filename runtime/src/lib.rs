@@ -7,6 +7,7 @@
 
 pub mod assign;
 pub mod bake;
+pub mod json;
 pub mod kernel;
 pub mod library;
 pub mod material;

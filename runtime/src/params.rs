@@ -292,6 +292,11 @@ impl ParamSpace {
     /// The vector as a JSON object that [`ParamSpace::from_json`] reads back to the same bits:
     /// floats as numbers, integers as integers, colours as linear `[r, g, b]`.
     pub fn to_json(&self, values: &[f32]) -> Result<Value, ParamError> {
+        self.to_json_map(values).map(Value::Object)
+    }
+
+    /// [`ParamSpace::to_json`]'s object itself.
+    pub fn to_json_map(&self, values: &[f32]) -> Result<serde_json::Map<String, Value>, ParamError> {
         self.check_len(values.len())?;
         let mut obj = serde_json::Map::new();
         for p in &self.params {
@@ -302,7 +307,7 @@ impl ParamSpace {
             };
             obj.insert(p.name.clone(), v);
         }
-        Ok(Value::Object(obj))
+        Ok(obj)
     }
 
     /// Natural units to the unit cube: slot `k` becomes `(x - min) / (max - min)` (colours are
@@ -386,7 +391,7 @@ fn shortest(x: f64) -> String {
 }
 
 /// A JSON value's type and, when short, the value itself, for messages.
-fn describe(v: &Value) -> String {
+pub(crate) fn describe(v: &Value) -> String {
     let kind = match v {
         Value::Null => return "null".into(),
         Value::Bool(b) => return format!("{b}"),
