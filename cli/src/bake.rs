@@ -3,14 +3,14 @@
 //! (EXR) maps. The graph is a `.psg` file (its first graph, or `--name`) or the name of a
 //! graph of the library.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
 use psc_base::SplitMix64;
-use psc_compiler::{compile_files, CompiledGraph, Options};
 use psc_runtime::bake;
-use psc_runtime::library::{default_library_root, psg_files, Material};
+use psc_runtime::library::Material;
+use psc_runtime::lookup::find_graph;
 use psc_runtime::params::ParamSpace;
 
 use crate::Failure;
@@ -42,42 +42,11 @@ pub struct Args {
     pub lib: Option<PathBuf>,
 }
 
-/// Finds and compiles the graph the user named.
-pub fn load_graph(spec: &str, name: Option<&str>, lib: Option<&Path>) -> Result<CompiledGraph, Failure> {
-    let path = PathBuf::from(spec);
-    let root = lib.map(Path::to_path_buf).unwrap_or_else(default_library_root);
-    let (files, options) = if path.extension().is_some_and(|e| e == "psg") || path.is_file() {
-        if !path.is_file() {
-            return Err(Failure(format!("no such file: {}", path.display())));
-        }
-        (vec![path], Options { lib_root: lib.map(Path::to_path_buf) })
-    } else {
-        let files =
-            psg_files(&root).map_err(|e| Failure(format!("cannot read the library {}: {e}", root.display())))?;
-        (files, Options { lib_root: Some(root.clone()) })
-    };
-    let output = compile_files(&files, &options);
-    if output.has_errors() {
-        return Err(Failure(format!("the graph has errors:\n{}", output.render_diagnostics())));
-    }
-    let wanted = name.or(if files.len() > 1 { Some(spec) } else { None });
-    let mut graphs = output.graphs;
-    match wanted {
-        Some(w) => {
-            let names: Vec<String> = graphs.iter().map(|g| g.info.name.clone()).collect();
-            let idx = graphs.iter().position(|g| g.info.name == w);
-            idx.map(|i| graphs.swap_remove(i))
-                .ok_or_else(|| Failure(format!("no graph named `{w}` (there are: {})", names.join(", "))))
-        }
-        None => graphs.into_iter().next().ok_or_else(|| Failure(format!("{spec} defines no graph"))),
-    }
-}
-
 pub fn run(args: Args) -> Result<ExitCode, Failure> {
     if args.size == 0 || args.size > 16384 {
         return Err(Failure(format!("--size {} must be between 1 and 16384", args.size)));
     }
-    let graph = load_graph(&args.graph, args.name.as_deref(), args.lib.as_deref())?;
+    let graph = find_graph(&args.graph, args.name.as_deref(), args.lib.as_deref())?;
     let space = ParamSpace::new(&graph.info);
     let params = match &args.params {
         Some(p) => {

@@ -1,16 +1,16 @@
 //! `psc render`: path-traced images, G-buffers, per-pixel light grids and per-light renders of a
-//! scene folder. A thin layer over `psc-render`.
+//! scene folder. Parses the options into a `psc_runtime::view::ViewRequest`, opens the view
+//! there, and renders through `psc-render`.
 //!
-//! Light radiances, in order: `--lights lights.json`, else `truth/truth.json` next to the scene
-//! (a dev convenience for validation; the fit itself never reads truth/), else unit radiance.
+//! Light radiances: `--lights lights.json`, or `--lights truth` (a dev scene's true radiances,
+//! for validation), else every light at unit radiance (said on stderr).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use psc_render::camera::{load_camera_file, Camera};
-use psc_render::{
-    compute_light_grid, image_io, render_gbuffer, truth, LightGridOptions, LightRadiances, RenderOptions, Renderer,
-    Scene,
+use psc_render::{compute_light_grid, image_io, render_gbuffer, LightGridOptions, RenderOptions, Renderer};
+use psc_runtime::view::{
+    open_view, CameraChoice, GeometryChoice, LightsChoice, MaterialsChoice, OpenedView, ViewRequest,
 };
 
 use crate::Failure;
@@ -60,7 +60,9 @@ pub struct Args {
     /// --light-grid, one grid per light in the same file.
     #[arg(long)]
     per_light: bool,
-    /// Light radiances: {"lights": [{"name", "radiance_rgb"}], "environment_scale"}.
+    /// Light radiances: a file {"lights": [{"name", "radiance_rgb"}], "environment_scale"}, or
+    /// `truth` for a dev scene's true radiances (validation only; `./truth` for a file of that
+    /// name). Without it, every light has unit radiance.
     #[arg(long)]
     lights: Option<PathBuf>,
     #[arg(long, value_enum, default_value_t = Materials::Mtl)]
@@ -109,47 +111,42 @@ fn parse_size(s: &str) -> Result<(usize, usize), String> {
     Ok((w, h))
 }
 
-pub fn run(args: Args) -> Result<ExitCode, Failure> {
-    let mesh_override = match args.geometry {
-        Geometry::Model => None,
-        Geometry::Truth => Some(truth::truth_mesh(&args.scene).ok_or("no truth/scene_true.obj next to the scene")?),
-    };
-    let scene = Scene::load_with_mesh(&args.scene, mesh_override.as_deref())?;
-    let mut warnings = scene.warnings.clone();
-
-    // Camera and size.
-    let (spec, default_size, context) = if let Some(path) = &args.camera {
-        let file = load_camera_file(path)?;
-        let size = file.size.or_else(|| scene.views.first().map(|v| (v.width, v.height))).unwrap_or((640, 480));
-        (file.camera, size, path.display().to_string())
-    } else {
-        let view = match &args.view {
-            Some(name) => scene.view(name).ok_or_else(|| {
-                let names: Vec<&str> = scene.views.iter().map(|v| v.name.as_str()).collect();
-                format!("no view '{name}' (views: {})", names.join(", "))
-            })?,
-            None => scene.views.first().ok_or("the scene has no views; give --camera")?,
-        };
-        (view.camera_spec.clone(), (view.width, view.height), format!("view '{}'", view.name))
-    };
-    let (width, height) = args.size.unwrap_or(default_size);
-    let camera = Camera::new(&spec, width, height, &context)?;
-
-    let mut materials = match args.materials {
-        Materials::Mtl => scene.mtl_materials(&mut warnings),
-        Materials::Truth => truth::truth_materials(&scene, &mut warnings)?,
-    };
-    if let Some(assign) = &args.assign {
-        let root = args.lib.clone().unwrap_or_else(psc_runtime::library::default_library_root);
-        let library = psc_runtime::library::Library::load(&root)?;
-        psc_runtime::assign::apply_assignment(assign, &library, &scene.mesh.part_names, &mut materials)?;
+/// The options as a request for the runtime.
+fn view_request(args: &Args) -> ViewRequest {
+    ViewRequest {
+        scene: args.scene.clone(),
+        geometry: match args.geometry {
+            Geometry::Model => GeometryChoice::Model,
+            Geometry::Truth => GeometryChoice::Truth,
+        },
+        camera: match (&args.camera, &args.view) {
+            (Some(file), _) => CameraChoice::File(file.clone()),
+            (None, Some(view)) => CameraChoice::View(view.clone()),
+            (None, None) => CameraChoice::FirstView,
+        },
+        size: args.size,
+        materials: match args.materials {
+            Materials::Mtl => MaterialsChoice::Mtl,
+            Materials::Truth => MaterialsChoice::Truth,
+        },
+        assign: args.assign.clone(),
+        library: args.lib.clone(),
+        lights: match &args.lights {
+            None => LightsChoice::Unit,
+            Some(p) if p.as_os_str() == "truth" => LightsChoice::Truth,
+            Some(p) => LightsChoice::File(p.clone()),
+        },
     }
-    let radiances = LightRadiances::resolve(&scene, args.lights.as_deref(), &mut warnings)?;
+}
+
+pub fn run(args: Args) -> Result<ExitCode, Failure> {
+    let OpenedView { scene, camera, width, height, materials, radiances, warnings, lights_note } =
+        open_view(&view_request(&args), None)?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }
     if !args.quiet {
-        eprintln!("lights: {}", radiances.source);
+        eprintln!("lights: {lights_note}");
     }
     let renderer = Renderer::new(&scene, materials, &radiances)?;
     let out = args.out.clone();
