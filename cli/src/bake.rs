@@ -13,7 +13,7 @@ use psc_runtime::library::Material;
 use psc_runtime::lookup::find_graph;
 use psc_runtime::params::ParamSpace;
 
-use crate::Failure;
+use crate::{checks, Error, Failure};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -22,8 +22,8 @@ pub struct Args {
     /// Which graph of the file, when it defines several.
     #[arg(long)]
     pub name: Option<String>,
-    /// Map size in texels (square).
-    #[arg(long, default_value_t = 1024)]
+    /// Map size in texels (square), at most 16384.
+    #[arg(long, default_value_t = 1024, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=16384))]
     pub size: usize,
     /// Parameter values: a JSON object of name → number, [r, g, b] (linear) or {"srgb": [r, g, b]}.
     #[arg(long)]
@@ -42,10 +42,8 @@ pub struct Args {
     pub lib: Option<PathBuf>,
 }
 
-pub fn run(args: Args) -> Result<ExitCode, Failure> {
-    if args.size == 0 || args.size > 16384 {
-        return Err(Failure(format!("--size {} must be between 1 and 16384", args.size)));
-    }
+pub fn run(args: Args) -> Result<ExitCode, Error> {
+    checks::folder_path("--out", &args.out)?;
     let graph = find_graph(&args.graph, args.name.as_deref(), args.lib.as_deref())?;
     let space = ParamSpace::new(&graph.info);
     let params = match &args.params {
@@ -78,7 +76,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
             .filter(|x| !x.is_finite())
             .count();
         if bad > 0 {
-            return Err(Failure(format!("{stem}: {bad} non-finite values; nothing written")));
+            return Err(Failure(format!("{stem}: {bad} non-finite values; nothing written")).into());
         }
         let written = bake::write_maps(&maps, &args.out, stem)
             .map_err(|e| Failure(format!("cannot write to {}: {e}", args.out.display())))?;

@@ -12,7 +12,7 @@ use psc_runtime::library::{default_library_root, Library};
 use psc_runtime::params::ParamSpace;
 use psc_runtime::sheet::{self, Cell};
 
-use crate::Failure;
+use crate::{checks, Error, Failure, Usage};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -23,7 +23,7 @@ pub struct Args {
     #[arg(long)]
     pub sheet: Option<PathBuf>,
     /// Size of each sample on the sheet, in pixels.
-    #[arg(long, default_value_t = 160)]
+    #[arg(long, default_value_t = 160, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub size: usize,
     /// Random variants per graph on the sheet, besides the defaults.
     #[arg(long, default_value_t = 3)]
@@ -32,21 +32,24 @@ pub struct Args {
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
     /// Graphs per sheet row (each graph takes 1 + variants cells).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 2, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub per_row: usize,
     /// Also compile every graph's fused forward+adjoint kernel (normally compiled on first use
     /// by the fit) and report the time.
     #[arg(long)]
     pub gradients: bool,
     /// Also time a bake of every graph at this size (e.g. 2048) and report the slowest.
-    #[arg(long)]
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub bench: Option<usize>,
     /// Only graphs whose name or category contains one of these (comma-separated).
     #[arg(long)]
     pub only: Option<String>,
 }
 
-pub fn run(args: Args) -> Result<ExitCode, Failure> {
+pub fn run(args: Args) -> Result<ExitCode, Error> {
+    if let Some(sheet) = &args.sheet {
+        checks::image_path("--sheet", sheet, &["png"])?;
+    }
     let root = args.lib.clone().unwrap_or_else(default_library_root);
     let started = Instant::now();
     let library = Library::load(&root).map_err(|e| Failure(e.to_string()))?;
@@ -62,6 +65,17 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
                     .any(|f| m.graph.info.name.contains(f.as_str()) || m.graph.info.category.contains(f.as_str()))
         })
         .collect();
+    if materials.is_empty() {
+        let mut categories: Vec<&str> = library.materials.iter().map(|m| m.graph.info.category.as_str()).collect();
+        categories.sort_unstable();
+        categories.dedup();
+        return Err(Usage(format!(
+            "--only: no graph's name or category contains {}; categories: {}",
+            filters.iter().map(|f| format!("'{f}'")).collect::<Vec<_>>().join(" or "),
+            categories.join(", ")
+        ))
+        .into());
+    }
     println!(
         "{} graphs from {} (front end {:.2} s, JIT {:.2} s, total {:.2} s)",
         library.materials.len(),

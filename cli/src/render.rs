@@ -13,7 +13,7 @@ use psc_runtime::view::{
     open_view, CameraChoice, GeometryChoice, LightsChoice, MaterialsChoice, OpenedView, ViewRequest,
 };
 
-use crate::Failure;
+use crate::{checks, Error, Failure, Usage};
 
 #[derive(clap::ValueEnum, Clone, Copy, PartialEq, Eq, Debug)]
 pub enum Materials {
@@ -42,23 +42,23 @@ pub struct Args {
     #[arg(long)]
     camera: Option<PathBuf>,
     /// Samples per pixel.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..))]
     spp: u32,
     /// Image size WxH (default: the view's photo, or the camera file's size).
-    #[arg(long, value_parser = parse_size)]
+    #[arg(long, value_parser = checks::parse_size)]
     size: Option<(usize, usize)>,
     /// Output: an image (.exr linear, .png sRGB), or a folder with --gbuffer/--light-grid/--per-light.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Write G-buffers (part id, uv, normals, tangent frame, depth, position) into the --out folder.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["light_grid", "per_light", "bench"])]
     gbuffer: bool,
     /// Write the per-pixel incoming-light grid (lightgrid.json + lightgrid.bin) into the --out folder.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "bench")]
     light_grid: bool,
     /// One image per light (and the environment) at unit radiance into the --out folder; with
     /// --light-grid, one grid per light in the same file.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "bench")]
     per_light: bool,
     /// Light radiances: a file {"lights": [{"name", "radiance_rgb"}], "environment_scale"}, or
     /// `truth` for a dev scene's true radiances (validation only; `./truth` for a file of that
@@ -79,16 +79,16 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Worker threads (default: all cores).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     threads: Option<usize>,
-    /// Path depth, Mitsuba convention (1 = emitters only, 2 = direct light).
-    #[arg(long, default_value_t = 6)]
+    /// Path depth, Mitsuba convention (1 = emitters only, 2 = direct light), at most 1024.
+    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=1024))]
     max_depth: u32,
     /// Light grid: one cell every N pixels.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     grid_stride: usize,
     /// Light grid: paths per hemisphere bin.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]
     grid_samples: u32,
     /// Print throughput: primary rays/s, path rays/s and the render time.
     #[arg(long)]
@@ -99,16 +99,6 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
-}
-
-fn parse_size(s: &str) -> Result<(usize, usize), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WxH, e.g. 320x240")?;
-    let w: usize = w.trim().parse().map_err(|_| "bad width")?;
-    let h: usize = h.trim().parse().map_err(|_| "bad height")?;
-    if w == 0 || h == 0 {
-        return Err("size must be positive".into());
-    }
-    Ok((w, h))
 }
 
 /// The options as a request for the runtime.
@@ -139,7 +129,29 @@ fn view_request(args: &Args) -> ViewRequest {
     }
 }
 
-pub fn run(args: Args) -> Result<ExitCode, Failure> {
+/// What is written where, decided from the options before any work is done.
+enum Output {
+    Image(PathBuf),
+    Folder(PathBuf),
+    /// `--bench` without `--out`: only figures are printed.
+    Nothing,
+}
+
+fn output(args: &Args) -> Result<Output, Usage> {
+    let folder_mode = args.gbuffer || args.light_grid || args.per_light;
+    match (&args.out, folder_mode) {
+        (None, _) if args.bench => Ok(Output::Nothing),
+        (None, true) => Err(Usage("--out: required; expected the folder to write into".into())),
+        (None, false) => {
+            Err(Usage("--out: required; expected an image path ending in .png (sRGB) or .exr (linear)".into()))
+        }
+        (Some(p), true) => checks::folder_path("--out", p).map(|()| Output::Folder(p.clone())),
+        (Some(p), false) => checks::image_path("--out", p, &["png", "exr"]).map(|()| Output::Image(p.clone())),
+    }
+}
+
+pub fn run(args: Args) -> Result<ExitCode, Error> {
+    let output = output(&args)?;
     let OpenedView { scene, camera, width, height, materials, radiances, warnings, lights_note } =
         open_view(&view_request(&args), None)?;
     for w in &warnings {
@@ -149,11 +161,13 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         eprintln!("lights: {lights_note}");
     }
     let renderer = Renderer::new(&scene, materials, &radiances)?;
-    let out = args.out.clone();
-    let need_out = || out.clone().ok_or_else(|| Failure("--out is required".into()));
+    let folder = || match &output {
+        Output::Folder(dir) => Ok(dir.clone()),
+        _ => Err(Failure("internal: no output folder for a folder output".into())),
+    };
 
     if args.gbuffer {
-        let dir = need_out()?;
+        let dir = folder()?;
         let gb = render_gbuffer(
             &renderer.geometry,
             &camera,
@@ -166,7 +180,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         return Ok(ExitCode::SUCCESS);
     }
     if args.light_grid {
-        let dir = need_out()?;
+        let dir = folder()?;
         let opts = LightGridOptions {
             stride: args.grid_stride,
             samples_per_bin: args.grid_samples,
@@ -226,14 +240,14 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
             result.seconds,
             (width * height) as f64 * args.spp as f64 / result.seconds / 1e6
         );
-        if let Some(path) = &out {
+        if let Output::Image(path) = &output {
             image_io::write_rgb(path, width, height, &result.image)?;
         }
         return Ok(ExitCode::SUCCESS);
     }
     let result = renderer.render(&camera, &opts)?;
     if args.per_light {
-        let dir = need_out()?;
+        let dir = folder()?;
         std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
         for (name, img) in &result.per_light {
             image_io::write_rgb(&dir.join(format!("{name}.exr")), width, height, img)?;
@@ -245,9 +259,8 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
             dir.display(),
             result.seconds
         );
-    } else {
-        let path = need_out()?;
-        image_io::write_rgb(&path, width, height, &result.image)?;
+    } else if let Output::Image(path) = &output {
+        image_io::write_rgb(path, width, height, &result.image)?;
         eprintln!("wrote {} ({width}x{height}, {} spp) in {:.2} s", path.display(), args.spp, result.seconds);
     }
     Ok(ExitCode::SUCCESS)
