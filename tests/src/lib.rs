@@ -1,1 +1,3 @@
-//! Integration tests live in tests/tests/.
+//! `psc-tests`: cross-crate integration tests (in `tests/`) and the helpers they share.
+
+pub mod dev_scenes;

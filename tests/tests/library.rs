@@ -5,8 +5,8 @@
 
 use std::sync::OnceLock;
 
-use psc_compiler::ParamKind;
 use psc_base::SplitMix64 as Rng;
+use psc_compiler::ParamKind;
 use psc_runtime::library::{default_library_root, Library, Material};
 
 fn library() -> &'static Library {
