@@ -8,6 +8,7 @@ mod bake;
 mod bench;
 mod checks;
 mod compile;
+mod fit;
 mod library;
 mod render;
 
@@ -34,6 +35,8 @@ enum Command {
     Library(library::Args),
     /// Render a scene: path-traced images, G-buffers, per-pixel light grids.
     Render(render::Args),
+    /// Fit a procedural material to every part of a scene from its photos.
+    Fit(fit::Args),
 }
 
 /// Bad input (a file, a scene, a graph): worth showing to the user as is; exit 1.
@@ -96,6 +99,7 @@ fn main() -> ExitCode {
         Command::Bake(args) => bake::run(args),
         Command::Library(args) => library::run(args),
         Command::Render(args) => render::run(args),
+        Command::Fit(args) => fit::run(args),
     };
     match result {
         Ok(code) => code,

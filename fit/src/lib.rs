@@ -11,4 +11,22 @@
 
 #![forbid(unsafe_code)]
 
+pub mod align;
+pub mod error;
 pub mod features;
+pub mod layer;
+pub mod lighting;
+pub mod loss;
+pub mod observe;
+pub mod optim;
+pub mod output;
+pub mod part_fit;
+pub mod pipeline;
+pub mod search;
+pub mod select;
+pub mod shading;
+pub mod targets;
+pub mod uvmap;
+pub mod views;
+
+pub use error::FitError;

@@ -327,9 +327,31 @@ impl MaterialBinding {
         self.material.prefetch(self.transform_uv(uv));
     }
 
-    /// Evaluate at the mesh uv: transform, evaluate, scale, clamp to the valid range.
+    /// The rotation part of the uv transform as (cos θ, sin θ): the rotation closest to its
+    /// 2×2 linear part (exact for a rotation with any uniform or per-axis scale).
+    #[inline]
+    pub fn uv_rotation(&self) -> (f32, f32) {
+        let m = &self.uv_transform;
+        let (x, y) = (m[0][0] + m[1][1], m[1][0] - m[0][1]);
+        let h = (x * x + y * y).sqrt();
+        if h > 0.0 && h.is_finite() {
+            (x / h, y / h)
+        } else {
+            (1.0, 0.0)
+        }
+    }
+
+    /// Evaluate at the mesh uv: transform, evaluate, scale, clamp to the valid range. The
+    /// material's tangent-space normal is rotated from texture space back into mesh-uv space
+    /// (slopes follow the pattern's rotation, not its scale), the way the fit's shading layer
+    /// does.
     pub fn eval(&self, uv: [f32; 2]) -> SurfaceSample {
         let mut s = self.material.eval(self.transform_uv(uv));
+        let (cos, sin) = self.uv_rotation();
+        if sin != 0.0 || cos != 1.0 {
+            let [nx, ny, nz] = s.normal;
+            s.normal = [cos * nx + sin * ny, -sin * nx + cos * ny, nz];
+        }
         for k in 0..3 {
             let a = s.albedo[k] * self.albedo_scale[k];
             s.albedo[k] = if a.is_finite() { a.max(0.0) } else { 0.0 };

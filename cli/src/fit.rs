@@ -1,0 +1,144 @@
+//! `psc fit <scene> --out <dir>`: fits a procedural material to every part of a scene from its
+//! photos (and estimates the lighting), then writes the result folder. A thin layer over
+//! `psc-fit`.
+
+use std::collections::BTreeMap;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Mutex;
+use std::time::Instant;
+
+use psc_fit::output::{self, OutputOptions};
+use psc_fit::pipeline::{fit_scene, FitOptions, Progress};
+use psc_render::scene::{LightRadiances, Scene};
+use psc_runtime::library::{default_library_root, Library};
+
+use crate::Failure;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scene folder (photoscene-scene/1: scene.json, OBJ model, photos, optional labels and lights).
+    scene: PathBuf,
+    /// Output folder (written whole or not at all).
+    #[arg(long)]
+    out: PathBuf,
+    /// Replace the output folder if it exists.
+    #[arg(long)]
+    force: bool,
+    /// Known light radiances (the `psc render --lights` format) instead of estimating them.
+    #[arg(long)]
+    lights: Option<PathBuf>,
+    /// Force a part's graph, skipping selection: --graph floor=oak_planks (repeatable).
+    #[arg(long = "graph", value_parser = parse_pair)]
+    graphs: Vec<(String, String)>,
+    /// Graph library folder (default: this checkout's graphs/).
+    #[arg(long)]
+    lib: Option<PathBuf>,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Random exemplars per graph for selection.
+    #[arg(long, default_value_t = 10)]
+    exemplars: usize,
+    /// Most gradient iterations per part.
+    #[arg(long, default_value_t = 1000)]
+    iterations: u32,
+    /// Size of the baked maps per part (0: none).
+    #[arg(long, default_value_t = 1024)]
+    texture_size: usize,
+    /// Samples per pixel of the re-rendered input views (0: none).
+    #[arg(long, default_value_t = 64)]
+    render_spp: u32,
+    /// No progress output.
+    #[arg(long)]
+    quiet: bool,
+}
+
+fn parse_pair(s: &str) -> Result<(String, String), String> {
+    let (a, b) = s.split_once('=').ok_or("expected part=graph")?;
+    if a.is_empty() || b.is_empty() {
+        return Err("expected part=graph".into());
+    }
+    Ok((a.to_string(), b.to_string()))
+}
+
+/// Progress as log lines on stderr: a line per stage and per finished part.
+struct LineProgress {
+    quiet: bool,
+    started: Instant,
+    stage: Mutex<(String, u64, u64)>,
+}
+
+impl Progress for LineProgress {
+    fn stage(&self, name: &str, total: u64) {
+        *self.stage.lock().unwrap_or_else(|e| e.into_inner()) = (name.to_string(), total, 0);
+        if !self.quiet {
+            eprintln!("[{:>6.1} s] {name} ({total})", self.started.elapsed().as_secs_f64());
+        }
+    }
+    fn advance(&self, steps: u64) {
+        let mut s = self.stage.lock().unwrap_or_else(|e| e.into_inner());
+        s.2 += steps;
+    }
+    fn note(&self, text: &str) {
+        if !self.quiet {
+            let s = self.stage.lock().unwrap_or_else(|e| e.into_inner());
+            eprintln!("[{:>6.1} s] {} {}/{}: {text}", self.started.elapsed().as_secs_f64(), s.0, s.2 + 1, s.1);
+        }
+    }
+}
+
+pub fn run(args: Args) -> Result<ExitCode, Failure> {
+    if let Some(n) = args.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().map_err(|e| Failure(e.to_string()))?;
+    }
+    let started = Instant::now();
+    let scene = Scene::load(&args.scene)?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    let root = args.lib.clone().unwrap_or_else(default_library_root);
+    let library = Library::load(&root)?;
+    let radiances = match &args.lights {
+        Some(p) => {
+            let mut warnings = Vec::new();
+            let r = LightRadiances::from_file(p, &scene, &mut warnings)?;
+            for w in &warnings {
+                eprintln!("warning: {w}");
+            }
+            Some(r)
+        }
+        None => None,
+    };
+    let mut options = FitOptions { seed: args.seed, ..Default::default() };
+    options.forced = args.graphs.iter().cloned().collect::<BTreeMap<_, _>>();
+    options.select.exemplars = args.exemplars;
+    options.fit.max_iterations = args.iterations;
+    let progress = LineProgress {
+        quiet: args.quiet || !std::io::stderr().is_terminal() && false,
+        started,
+        stage: Mutex::new((String::new(), 0, 0)),
+    };
+    let result = fit_scene(&scene, &library, radiances.as_ref(), &options, &progress)?;
+    let output_options = OutputOptions {
+        texture_size: args.texture_size,
+        render_spp: args.render_spp,
+        force: args.force,
+        seed: args.seed,
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+    };
+    progress.stage("write results", 1);
+    output::write(&args.out, &scene, &library, &result, &output_options)?;
+    if !args.quiet {
+        eprintln!(
+            "fitted {} parts in {:.1} s; wrote {}",
+            result.parts.len(),
+            started.elapsed().as_secs_f64(),
+            args.out.display()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}

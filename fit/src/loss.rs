@@ -1,0 +1,161 @@
+//! Losses between a rendered crop and the photo: PhotoScene's statistics loss (masked
+//! per-channel mean and standard deviation, L1) and the feature loss of
+//! [`crate::features`], weighted.
+
+use serde::Serialize;
+
+use crate::error::FitError;
+use crate::features::{Descriptor, FeatureConfig, FeatureLoss, Region, Scratch};
+use crate::layer::PartView;
+
+/// Weights of the loss terms.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct LossWeights {
+    pub statistics: f32,
+    pub features: f32,
+}
+
+impl Default for LossWeights {
+    fn default() -> Self {
+        LossWeights { statistics: 1.0, features: 1.0 }
+    }
+}
+
+/// The terms of one evaluation.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct LossValue {
+    pub total: f32,
+    pub statistics: f32,
+    pub features: f32,
+}
+
+/// Weighted per-channel mean and standard deviation.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Moments {
+    pub mean: [f32; 3],
+    pub std: [f32; 3],
+}
+
+impl Moments {
+    pub fn of(image: &[[f32; 3]], weight: &[f32]) -> Moments {
+        let total: f64 = weight.iter().map(|&w| f64::from(w)).sum::<f64>().max(1e-12);
+        let mut mean = [0.0f64; 3];
+        for (px, &w) in image.iter().zip(weight) {
+            for c in 0..3 {
+                mean[c] += f64::from(w) * f64::from(px[c]);
+            }
+        }
+        mean.iter_mut().for_each(|m| *m /= total);
+        let mut var = [0.0f64; 3];
+        for (px, &w) in image.iter().zip(weight) {
+            for c in 0..3 {
+                let d = f64::from(px[c]) - mean[c];
+                var[c] += f64::from(w) * d * d;
+            }
+        }
+        Moments { mean: mean.map(|m| m as f32), std: var.map(|v| (v / total).sqrt() as f32) }
+    }
+}
+
+/// The loss of one part against its photo crop.
+pub struct PartLoss {
+    weights: LossWeights,
+    weight: Vec<f32>,
+    total_weight: f32,
+    target: Moments,
+    features: FeatureLoss,
+    target_features: Descriptor,
+}
+
+impl PartLoss {
+    pub fn new(
+        view: &PartView,
+        weights: LossWeights,
+        config: &FeatureConfig,
+        scratch: &mut Scratch,
+    ) -> Result<PartLoss, FitError> {
+        let region = Region { width: view.width, height: view.height, weight: view.weight.clone() };
+        let features = FeatureLoss::new(config, &region).map_err(feature_error)?;
+        let target_features = features.describe(&view.target, scratch).map_err(feature_error)?;
+        Ok(PartLoss {
+            weights,
+            total_weight: view.total_weight().max(1e-6),
+            weight: view.weight.clone(),
+            target: Moments::of(&view.target, &view.weight),
+            features,
+            target_features,
+        })
+    }
+
+    pub fn target_moments(&self) -> Moments {
+        self.target
+    }
+
+    pub fn value(&self, image: &[[f32; 3]], scratch: &mut Scratch) -> LossValue {
+        let m = Moments::of(image, &self.weight);
+        let statistics = self.statistics(&m);
+        let features = if self.weights.features > 0.0 {
+            // The image and target come from this loss's own region: a mismatch is a bug.
+            self.features.loss(image, &self.target_features, scratch).unwrap_or(f32::INFINITY)
+        } else {
+            0.0
+        };
+        self.combine(statistics, features)
+    }
+
+    /// The loss and its gradient with respect to every crop pixel (written to `grad`).
+    pub fn value_and_grad(&self, image: &[[f32; 3]], scratch: &mut Scratch, grad: &mut Vec<[f32; 3]>) -> LossValue {
+        grad.clear();
+        grad.resize(image.len(), [0.0; 3]);
+        let features = if self.weights.features > 0.0 {
+            let f = self.features.loss_and_grad(image, &self.target_features, scratch, grad).unwrap_or(f32::INFINITY);
+            grad.iter_mut().for_each(|g| *g = g.map(|x| x * self.weights.features));
+            f
+        } else {
+            0.0
+        };
+        let m = Moments::of(image, &self.weight);
+        let statistics = self.statistics(&m);
+        let ws = self.weights.statistics;
+        for c in 0..3 {
+            let d_mean = ws * sign(m.mean[c] - self.target.mean[c]) / self.total_weight;
+            let d_std = if m.std[c] > 1e-6 {
+                ws * sign(m.std[c] - self.target.std[c]) / (self.total_weight * m.std[c])
+            } else {
+                0.0
+            };
+            for ((g, px), &w) in grad.iter_mut().zip(image).zip(&self.weight) {
+                if w > 0.0 {
+                    g[c] += w * (d_mean + d_std * (px[c] - m.mean[c]));
+                }
+            }
+        }
+        self.combine(statistics, features)
+    }
+
+    fn statistics(&self, m: &Moments) -> f32 {
+        (0..3).map(|c| (m.mean[c] - self.target.mean[c]).abs() + (m.std[c] - self.target.std[c]).abs()).sum()
+    }
+
+    fn combine(&self, statistics: f32, features: f32) -> LossValue {
+        LossValue {
+            total: self.weights.statistics * statistics + self.weights.features * features,
+            statistics,
+            features,
+        }
+    }
+}
+
+fn sign(x: f32) -> f32 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+fn feature_error(e: crate::features::FeatureError) -> FitError {
+    FitError::Input(format!("feature loss: {e}"))
+}

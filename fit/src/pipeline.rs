@@ -1,0 +1,464 @@
+//! The fit of a whole scene, stage after stage: observe the views, align every part, estimate
+//! the lighting, then per part choose a view, select a graph and fit it. Each stage is a module
+//! of its own; this one only passes their plain data along and times them.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use psc_render::material::MaterialBinding;
+use psc_render::scene::{LightRadiances, Scene};
+use psc_render::Renderer;
+use psc_runtime::library::Library;
+use psc_runtime::material::ProceduralMaterial;
+use serde::Serialize;
+
+use crate::align::{align_view, AlignedPart, Dropped, Warp};
+use crate::error::FitError;
+use crate::features::{FeatureConfig, Scratch};
+use crate::layer::{MaterialState, PartView, Sampling, Workspace};
+use crate::lighting::{self, GridSettings, ShadingGrid};
+use crate::loss::{LossValue, LossWeights, PartLoss};
+use crate::observe::ViewObservation;
+use crate::optim::Free;
+use crate::part_fit::{fit_part, FitSettings, Problem};
+use crate::select::{select, Ranked, SelectSettings};
+use crate::targets::part_view;
+use crate::uvmap::UvTransform;
+use crate::views::{choose, ViewScore};
+
+/// Everything a fit can be told.
+#[derive(Clone, Debug)]
+pub struct FitOptions {
+    pub seed: u64,
+    /// Parts whose graph is given (`--graph part=name`): no selection for them.
+    pub forced: BTreeMap<String, String>,
+    pub select: SelectSettings,
+    pub fit: FitSettings,
+    pub grid: GridSettings,
+    /// Fit pixels of a part's fit view and of its search view (selection, UV search).
+    pub fit_pixels: usize,
+    pub search_pixels: usize,
+    /// Parts with fewer usable pixels get a homogeneous material.
+    pub min_pixels: usize,
+    pub loss: LossWeights,
+    pub features: FeatureConfig,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            seed: 0,
+            forced: BTreeMap::new(),
+            select: SelectSettings::default(),
+            fit: FitSettings::default(),
+            grid: GridSettings::default(),
+            fit_pixels: 4096,
+            search_pixels: 1024,
+            min_pixels: 500,
+            loss: LossWeights::default(),
+            features: FeatureConfig::default(),
+        }
+    }
+}
+
+/// Reports what a long fit is doing. Implemented by the command line (bars, log lines).
+pub trait Progress: Sync {
+    /// A new stage with `total` steps.
+    fn stage(&self, name: &str, total: u64);
+    fn advance(&self, steps: u64);
+    /// A finished result worth a line of its own.
+    fn note(&self, text: &str);
+}
+
+/// No progress output.
+pub struct Silent;
+
+impl Progress for Silent {
+    fn stage(&self, _: &str, _: u64) {}
+    fn advance(&self, _: u64) {}
+    fn note(&self, _: &str) {}
+}
+
+/// How a part got its material.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PartStatus {
+    /// Selected and fitted.
+    Fitted,
+    /// The graph was given with `--graph`.
+    Forced,
+    /// Too few usable pixels: a homogeneous material at the shading-normalised median colour.
+    Homogeneous,
+    /// No view shows it: the documented default (homogeneous mid grey, roughness 0.5).
+    Unobserved,
+}
+
+/// Pixel counts of a part in its chosen view.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct PixelCounts {
+    /// Labelled in the photo (M_photo).
+    pub photo: usize,
+    /// Seen on the coarse model (M_geo).
+    pub model: usize,
+    pub usable: usize,
+    pub fitted: usize,
+    pub dropped: Dropped,
+}
+
+/// Seconds spent per stage for one part.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct PartTimings {
+    pub targets: f64,
+    pub selection: f64,
+    pub fit: f64,
+}
+
+/// The fit of one part.
+#[derive(Clone, Debug)]
+pub struct PartResult {
+    pub name: String,
+    pub status: PartStatus,
+    pub graph: String,
+    pub state: MaterialState,
+    /// Scale of the graph's roughness map in the output, so that its mean over the part is the
+    /// fitted roughness.
+    pub roughness_scale: f32,
+    /// The selection's best graphs with their votes (empty when not selected).
+    pub top: Vec<Ranked>,
+    pub view: Option<String>,
+    pub view_scores: Vec<ViewScore>,
+    pub warp: Option<Warp>,
+    pub iou: Option<(f32, f32)>,
+    pub pixels: PixelCounts,
+    pub loss: LossValue,
+    pub history: Vec<f32>,
+    pub iterations: u32,
+    pub uv_candidates: usize,
+    pub timings: PartTimings,
+}
+
+/// Everything a fit decided.
+pub struct FitResult {
+    pub parts: Vec<PartResult>,
+    /// Light slot names (scene lights, then "environment") and their fitted RGB radiance.
+    pub slot_names: Vec<String>,
+    pub radiance: Vec<[f32; 3]>,
+    /// How the radiances were obtained.
+    pub light_source: String,
+    /// (stage, seconds) in order.
+    pub timings: Vec<(String, f64)>,
+}
+
+impl FitResult {
+    /// The fitted materials as renderer bindings, one per model part.
+    pub fn bindings(&self, library: &Library) -> Result<Vec<MaterialBinding>, FitError> {
+        self.parts.iter().map(|p| binding(library, &p.graph, &p.state, p.roughness_scale)).collect()
+    }
+
+    /// The radiances in the renderer's form.
+    pub fn light_radiances(&self, scene: &Scene) -> LightRadiances {
+        let n = scene.lights.len();
+        LightRadiances {
+            lights: self.radiance[..n].to_vec(),
+            environment: self.radiance.get(n).copied().unwrap_or([1.0; 3]),
+            source: self.light_source.clone(),
+        }
+    }
+}
+
+/// A renderer binding for a graph at a fitted state.
+pub fn binding(
+    library: &Library,
+    graph: &str,
+    state: &MaterialState,
+    roughness_scale: f32,
+) -> Result<MaterialBinding, FitError> {
+    let material = library.get(graph).ok_or_else(|| FitError::Input(format!("no graph `{graph}` in the library")))?;
+    let procedural = ProceduralMaterial::new(material.clone(), state.params.clone()).map_err(FitError::Input)?;
+    Ok(MaterialBinding {
+        material: std::sync::Arc::new(procedural),
+        uv_transform: state.uv.matrix(),
+        albedo_scale: state.albedo_scale,
+        roughness_scale,
+    })
+}
+
+/// The documented default for parts no view shows.
+const UNOBSERVED_ALBEDO: [f32; 3] = [0.5; 3];
+const DEFAULT_ROUGHNESS: f32 = 0.5;
+const HOMOGENEOUS: &str = "homogeneous";
+
+/// Fits every part of `scene`. `radiances`: known light radiances (`--lights`), else they are
+/// estimated from the photos.
+pub fn fit_scene(
+    scene: &Scene,
+    library: &Library,
+    radiances: Option<&LightRadiances>,
+    options: &FitOptions,
+    progress: &dyn Progress,
+) -> Result<FitResult, FitError> {
+    let mut timings = Vec::new();
+    let mut clock = Instant::now();
+    let mut lap = |name: &str, timings: &mut Vec<(String, f64)>| {
+        timings.push((name.to_string(), clock.elapsed().as_secs_f64()));
+        clock = Instant::now();
+    };
+    if scene.views.is_empty() {
+        return Err(FitError::Input(format!("{}: the scene has no views to fit to", scene.root.display())));
+    }
+    let homogeneous = library
+        .get(HOMOGENEOUS)
+        .ok_or_else(|| FitError::Input(format!("the graph library has no `{HOMOGENEOUS}` graph")))?
+        .clone();
+    for (part, graph) in &options.forced {
+        if scene.mesh.part_index(part).is_none() {
+            return Err(FitError::Input(format!(
+                "--graph {part}={graph}: the scene has no part `{part}` (parts: {})",
+                scene.mesh.part_names.join(", ")
+            )));
+        }
+        if library.get(graph).is_none() {
+            return Err(FitError::Input(format!("--graph {part}={graph}: no graph `{graph}` in the library")));
+        }
+    }
+    let n_parts = scene.mesh.part_names.len();
+    let unit = LightRadiances::unit(scene);
+    let mut renderer = Renderer::new(scene, scene.mtl_materials(&mut Vec::new()), &unit)?;
+
+    progress.stage("observe views", scene.views.len() as u64);
+    let views: Vec<ViewObservation> = scene
+        .views
+        .iter()
+        .map(|v| {
+            let obs = ViewObservation::new(v, &scene.mesh.part_names, &renderer.geometry);
+            progress.advance(1);
+            obs
+        })
+        .collect::<Result<_, _>>()?;
+    let aligned: Vec<Vec<AlignedPart>> = views.iter().enumerate().map(|(i, o)| align_view(o, i, n_parts)).collect();
+    lap("observe and align", &mut timings);
+
+    // Lighting: the other parts' materials for the indirect light are their pixel medians.
+    renderer.materials = lighting::median_materials(&views, n_parts);
+    let n_slots = renderer.n_slots();
+    let (radiance, light_source) = match radiances {
+        Some(r) => {
+            let mut v = r.lights.clone();
+            if n_slots > v.len() {
+                v.push(r.environment);
+            }
+            (v, r.source.clone())
+        }
+        None => {
+            progress.stage("estimate lights", views.len() as u64);
+            let renders = lighting::unit_renders(&renderer, &views, options.seed)?;
+            let (common, pixels) = lighting::common_radiance(&views, &renders)?;
+            progress.note(&format!(
+                "initial light estimate: one common radiance ({:.3}, {:.3}, {:.3}) from {pixels} pixels",
+                common[0], common[1], common[2]
+            ));
+            (vec![common; n_slots], format!("estimated from the photos (one common radiance, {pixels} pixels)"))
+        }
+    };
+    lap("light estimate", &mut timings);
+    progress.stage("light grids", views.len() as u64);
+    let grids = lighting::view_grids(&renderer, &views, options.grid, options.seed)?;
+    let shading: Vec<ShadingGrid> =
+        grids.iter().zip(&views).map(|(g, o)| ShadingGrid::new(g, &radiance, o.camera.position)).collect();
+    lap("light grids", &mut timings);
+
+    progress.stage("fit parts", n_parts as u64);
+    let mut parts = Vec::with_capacity(n_parts);
+    for part in 0..n_parts {
+        let name = &scene.mesh.part_names[part];
+        let result =
+            fit_one_part(scene, library, &homogeneous, &renderer, &views, &aligned, &shading, part as u32, options)?;
+        progress.note(&summary(name, &result));
+        parts.push(result);
+        progress.advance(1);
+    }
+    lap("fit parts", &mut timings);
+    Ok(FitResult { parts, slot_names: renderer.slot_names.clone(), radiance, light_source, timings })
+}
+
+fn summary(name: &str, r: &PartResult) -> String {
+    match r.status {
+        PartStatus::Unobserved => format!("{name}: seen in no view; default material"),
+        PartStatus::Homogeneous => {
+            format!("{name}: {} usable pixels; homogeneous at its shading-normalised median", r.pixels.usable)
+        }
+        _ => format!(
+            "{name}: {} (top: {}) in view {}, loss {:.4} after {} iterations",
+            r.graph,
+            r.top.iter().map(|t| t.graph.as_str()).collect::<Vec<_>>().join(", "),
+            r.view.as_deref().unwrap_or("-"),
+            r.loss.total,
+            r.iterations
+        ),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn fit_one_part(
+    scene: &Scene,
+    library: &Library,
+    homogeneous: &std::sync::Arc<psc_runtime::library::Material>,
+    renderer: &Renderer,
+    views: &[ViewObservation],
+    aligned: &[Vec<AlignedPart>],
+    shading: &[ShadingGrid],
+    part: u32,
+    options: &FitOptions,
+) -> Result<PartResult, FitError> {
+    let name = scene.mesh.part_names[part as usize].clone();
+    let started = Instant::now();
+    let mut result = PartResult {
+        name: name.clone(),
+        status: PartStatus::Unobserved,
+        graph: HOMOGENEOUS.to_string(),
+        state: flat_state(homogeneous, UNOBSERVED_ALBEDO, DEFAULT_ROUGHNESS),
+        roughness_scale: 1.0,
+        top: Vec::new(),
+        view: None,
+        view_scores: Vec::new(),
+        warp: None,
+        iou: None,
+        pixels: PixelCounts::default(),
+        loss: LossValue::default(),
+        history: Vec::new(),
+        iterations: 0,
+        uv_candidates: 0,
+        timings: PartTimings::default(),
+    };
+    // Candidate views with their search-resolution targets and shading-normalised colours.
+    let mut candidates: Vec<(&AlignedPart, PartView, [f32; 3])> = Vec::new();
+    let mut ws = Workspace::default();
+    for (v, list) in aligned.iter().enumerate() {
+        let Some(a) = list.iter().find(|a| a.part == part && !a.usable.is_empty()) else { continue };
+        let obs = &views[v];
+        let Some(view) = part_view(obs, a, &renderer.geometry, &obs.camera, &shading[v], options.search_pixels, 1.0)
+        else {
+            continue;
+        };
+        let colour = flat_colour(homogeneous, &view, &mut ws)?;
+        candidates.push((a, view, colour));
+    }
+    if candidates.is_empty() {
+        return Ok(result);
+    }
+    let (scores, best) = choose(
+        views,
+        &candidates.iter().map(|c| c.0).collect::<Vec<_>>(),
+        &candidates.iter().map(|c| c.2).collect::<Vec<_>>(),
+    );
+    let (chosen, search_view, colour) = candidates.swap_remove(best);
+    let obs = &views[chosen.view];
+    result.view = Some(obs.name.clone());
+    result.view_scores = scores;
+    result.warp = Some(chosen.warp);
+    result.iou = Some((chosen.iou_initial, chosen.iou));
+    result.pixels = PixelCounts {
+        photo: chosen.photo_pixels,
+        model: chosen.model_pixels,
+        usable: chosen.usable.len(),
+        fitted: 0,
+        dropped: chosen.dropped,
+    };
+    if chosen.usable.len() < options.min_pixels {
+        result.status = PartStatus::Homogeneous;
+        result.state = flat_state(homogeneous, colour, DEFAULT_ROUGHNESS);
+        result.pixels.fitted = search_view.pixels.len();
+        result.timings.targets = started.elapsed().as_secs_f64();
+        return Ok(result);
+    }
+    let fit_view =
+        part_view(obs, chosen, &renderer.geometry, &obs.camera, &shading[chosen.view], options.fit_pixels, 1.0)
+            .expect("the search view of the same pixels exists");
+    result.pixels.fitted = fit_view.pixels.len();
+    let mut scratch = Scratch::default();
+    let fit_loss = PartLoss::new(&fit_view, options.loss, &options.features, &mut scratch)?;
+    let search_loss = PartLoss::new(&search_view, options.loss, &options.features, &mut scratch)?;
+    result.timings.targets = started.elapsed().as_secs_f64();
+
+    let started = Instant::now();
+    let seed = psc_base::mix64(options.seed ^ (u64::from(part) << 32));
+    let forced = options.forced.get(&name);
+    let selection = match forced {
+        Some(_) => None,
+        None => {
+            Some(select(library, &search_view, &search_loss, options.select, options.fit.search_sampling, seed, None)?)
+        }
+    };
+    result.timings.selection = started.elapsed().as_secs_f64();
+    let started = Instant::now();
+    let graph_name = match (forced, &selection) {
+        (Some(g), _) => g.clone(),
+        (None, Some(s)) => s.ranking[0].graph.clone(),
+        (None, None) => unreachable!("selection runs unless the graph is forced"),
+    };
+    let graph_index = library.materials.iter().position(|m| m.name() == graph_name).expect("checked above");
+    let material = &library.materials[graph_index];
+    let starts: Vec<MaterialState> = match &selection {
+        Some(s) => s.exemplars_of(graph_index).take(options.fit.starts).map(|e| e.state.clone()).collect(),
+        None => vec![MaterialState {
+            params: material.graph.info.default_params(),
+            uv: UvTransform::default(),
+            albedo_scale: [1.0; 3],
+            roughness: DEFAULT_ROUGHNESS,
+        }],
+    };
+    let problem = Problem {
+        material,
+        fit_view: &fit_view,
+        fit_loss: &fit_loss,
+        search_view: &search_view,
+        search_loss: &search_loss,
+    };
+    let fit = fit_part(&problem, &starts, &options.fit, Free::ALL)?;
+    // The output keeps the graph's roughness map, scaled to the fitted part-wide value.
+    fit_view.render(material, &fit.state, options.fit.sampling, &mut ws)?;
+    let map_mean = ws.channel_mean(3);
+    result.roughness_scale = if map_mean > 1e-4 { (fit.state.roughness / map_mean).clamp(0.0, 50.0) } else { 1.0 };
+    result.status = if forced.is_some() { PartStatus::Forced } else { PartStatus::Fitted };
+    result.graph = graph_name;
+    result.top = selection.map(|s| s.ranking.into_iter().take(3).collect()).unwrap_or_default();
+    result.state = fit.state;
+    result.loss = fit.loss;
+    result.history = fit.history;
+    result.iterations = fit.iterations;
+    result.uv_candidates = fit.uv_candidates;
+    result.timings.fit = started.elapsed().as_secs_f64();
+    Ok(result)
+}
+
+/// The homogeneous graph at linear colour `albedo` (values above 1 stay in the albedo scale).
+fn flat_state(homogeneous: &psc_runtime::library::Material, albedo: [f32; 3], roughness: f32) -> MaterialState {
+    let info = &homogeneous.graph.info;
+    let mut params = info.default_params();
+    let mut albedo_scale = [1.0f32; 3];
+    if let Some(p) = info.param("albedo_color") {
+        for c in 0..3 {
+            params[p.slot + c] = albedo[c].clamp(0.0, 1.0);
+            if albedo[c] > 1.0 {
+                albedo_scale[c] = albedo[c];
+                params[p.slot + c] = 1.0;
+            }
+        }
+    }
+    if let Some(p) = info.param("rough") {
+        params[p.slot] = roughness;
+    }
+    MaterialState { params, uv: UvTransform::default(), albedo_scale, roughness }
+}
+
+/// The shading-normalised median colour of a part: the albedo scale that colour-matches a
+/// white homogeneous material to the photo.
+fn flat_colour(
+    homogeneous: &psc_runtime::library::Material,
+    view: &PartView,
+    ws: &mut Workspace,
+) -> Result<[f32; 3], FitError> {
+    let white = flat_state(homogeneous, [1.0; 3], DEFAULT_ROUGHNESS);
+    view.render(homogeneous, &white, Sampling { density: 0.0, max_per_axis: 1 }, ws)?;
+    Ok(view.matched_albedo_scale(&white, ws))
+}

@@ -1,0 +1,172 @@
+//! UV search: the loss of a material over a grid of UV transforms, each candidate colour-matched
+//! to the photo (its albedo scale set so that medians agree) before it is scored, so that the
+//! search compares patterns, not brightness.
+//!
+//! PhotoScene's grid is 72 rotations × 32 log-scales (1.5^−3.5 … 1.5^4.25) × 5×5 translations.
+//! Evaluating all 57 600 candidates for every part is far beyond a CPU's minutes, and most of
+//! them are redundant: the feature loss is built to be invariant to the pattern's phase, so
+//! translations matter little, and the loss is smooth over neighbouring rotations and scales.
+//! The search therefore runs coarse to fine on the same grid: every 3rd rotation (15°) × every
+//! log-scale, then the full-resolution neighbours of the best few, then the 5×5 translations of
+//! the winner.
+
+use rayon::prelude::*;
+
+use crate::error::FitError;
+use crate::features::Scratch;
+use crate::layer::{MaterialState, PartView, Sampling, Workspace};
+use crate::loss::PartLoss;
+use crate::uvmap::{UvTransform, LOG_SCALE_RANGE};
+use psc_runtime::library::Material;
+
+pub const ROTATIONS: usize = 72;
+pub const LOG_SCALES: usize = 32;
+pub const TRANSLATIONS: usize = 5;
+
+pub fn rotation_of(i: usize) -> f32 {
+    (i % ROTATIONS) as f32 * std::f32::consts::TAU / ROTATIONS as f32
+}
+
+pub fn log_scale_of(j: usize) -> f32 {
+    LOG_SCALE_RANGE.0 + (LOG_SCALE_RANGE.1 - LOG_SCALE_RANGE.0) * j as f32 / (LOG_SCALES - 1) as f32
+}
+
+/// A scored candidate: its transform, the colour-matched albedo scale and the loss.
+#[derive(Clone, Copy, Debug)]
+pub struct Scored {
+    pub uv: UvTransform,
+    pub albedo_scale: [f32; 3],
+    pub loss: f32,
+}
+
+/// Scores every candidate transform for `base` (parameters and roughness fixed), in parallel.
+pub fn score(
+    material: &Material,
+    view: &PartView,
+    loss: &PartLoss,
+    base: &MaterialState,
+    candidates: &[UvTransform],
+    sampling: Sampling,
+) -> Result<Vec<Scored>, FitError> {
+    candidates
+        .par_iter()
+        .map_init(
+            || (Workspace::default(), Scratch::default()),
+            |(ws, scratch), &uv| {
+                let state = MaterialState { uv, ..base.clone() };
+                view.render(material, &state, sampling, ws)?;
+                let albedo_scale = view.matched_albedo_scale(&state, ws);
+                view.rescale(&state, albedo_scale, ws);
+                let value = loss.value(&ws.image, scratch).total;
+                Ok(Scored { uv, albedo_scale, loss: if value.is_finite() { value } else { f32::INFINITY } })
+            },
+        )
+        .collect()
+}
+
+fn best(scored: &[Scored]) -> Scored {
+    // Ties go to the earlier candidate, so the result does not depend on evaluation order.
+    *scored.iter().reduce(|a, b| if b.loss < a.loss { b } else { a }).expect("at least one candidate")
+}
+
+/// The coarse-to-fine search over the whole grid; returns the best candidate and how many
+/// candidates were scored.
+pub fn global(
+    material: &Material,
+    view: &PartView,
+    loss: &PartLoss,
+    base: &MaterialState,
+    sampling: Sampling,
+) -> Result<(Scored, usize), FitError> {
+    let offset = base.uv.offset;
+    let coarse: Vec<UvTransform> = (0..ROTATIONS)
+        .step_by(3)
+        .flat_map(|i| {
+            (0..LOG_SCALES).map(move |j| UvTransform { rotation: rotation_of(i), log_scale: log_scale_of(j), offset })
+        })
+        .collect();
+    let scored = score(material, view, loss, base, &coarse, sampling)?;
+    let mut evaluated = scored.len();
+    // Refine around the best three coarse candidates.
+    let mut order: Vec<usize> = (0..scored.len()).collect();
+    order.sort_by(|&a, &b| scored[a].loss.total_cmp(&scored[b].loss).then(a.cmp(&b)));
+    let mut fine = Vec::new();
+    for &c in order.iter().take(3) {
+        let (i, j) = ((c / LOG_SCALES) * 3, c % LOG_SCALES);
+        for di in [ROTATIONS - 1, 0, 1] {
+            for dj in [-1i64, 0, 1] {
+                let jj = j as i64 + dj;
+                if (0..LOG_SCALES as i64).contains(&jj) && !(di == 0 && dj == 0) {
+                    fine.push(UvTransform {
+                        rotation: rotation_of(i + di),
+                        log_scale: log_scale_of(jj as usize),
+                        offset,
+                    });
+                }
+            }
+        }
+    }
+    let mut all = scored;
+    let refined = score(material, view, loss, base, &fine, sampling)?;
+    evaluated += refined.len();
+    all.extend(refined);
+    let winner = best(&all);
+    let (tuned, n) = translations(material, view, loss, base, winner, sampling)?;
+    Ok((tuned, evaluated + n))
+}
+
+/// The 5×5 translations of `at` (the grid's spacing, 1/5 tile), keeping the best.
+pub fn translations(
+    material: &Material,
+    view: &PartView,
+    loss: &PartLoss,
+    base: &MaterialState,
+    at: Scored,
+    sampling: Sampling,
+) -> Result<(Scored, usize), FitError> {
+    let step = 1.0 / TRANSLATIONS as f32;
+    let candidates: Vec<UvTransform> = (0..TRANSLATIONS * TRANSLATIONS)
+        .filter(|&t| t != 0)
+        .map(|t| {
+            let (a, b) = ((t % TRANSLATIONS) as f32, (t / TRANSLATIONS) as f32);
+            UvTransform { offset: [at.uv.offset[0] + a * step, at.uv.offset[1] + b * step], ..at.uv }.canonical()
+        })
+        .collect();
+    let scored = score(material, view, loss, base, &candidates, sampling)?;
+    let mut all = vec![at];
+    all.extend(&scored);
+    Ok((best(&all), scored.len()))
+}
+
+/// The neighbours of `base.uv` on the full grid's spacing (±1 and ±2 rotation steps, ±1
+/// log-scale step) plus 3×3 half-spacing translations; returns the best of them and `base`'s
+/// own score.
+pub fn local(
+    material: &Material,
+    view: &PartView,
+    loss: &PartLoss,
+    base: &MaterialState,
+    sampling: Sampling,
+) -> Result<(Scored, usize), FitError> {
+    let (dr, dk) =
+        (std::f32::consts::TAU / ROTATIONS as f32, (LOG_SCALE_RANGE.1 - LOG_SCALE_RANGE.0) / (LOG_SCALES - 1) as f32);
+    let u = base.uv;
+    let mut candidates = vec![u];
+    for i in [-2.0f32, -1.0, 1.0, 2.0] {
+        candidates.push(UvTransform { rotation: u.rotation + i * dr, ..u });
+    }
+    for j in [-1.0f32, 1.0] {
+        candidates.push(UvTransform { log_scale: u.log_scale + j * dk, ..u }.canonical());
+    }
+    let half = 0.5 / TRANSLATIONS as f32;
+    for a in [-1.0f32, 0.0, 1.0] {
+        for b in [-1.0f32, 0.0, 1.0] {
+            if a != 0.0 || b != 0.0 {
+                candidates
+                    .push(UvTransform { offset: [u.offset[0] + a * half, u.offset[1] + b * half], ..u }.canonical());
+            }
+        }
+    }
+    let scored = score(material, view, loss, base, &candidates, sampling)?;
+    Ok((best(&scored), scored.len()))
+}

@@ -1,0 +1,91 @@
+//! Stage 4, a part's fitting target in one view: the crop of its usable photo pixels at a
+//! working resolution, with each fit pixel's surface point (uv, footprint, frame) traced at its
+//! warped position on the coarse model and its lighting interpolated from the view's grid.
+//!
+//! Large parts are fitted at a reduced resolution: a fit pixel then averages `factor`×`factor`
+//! photo pixels (in linear values, as a camera would) and its footprint grows accordingly, so
+//! the shading layer supersamples it more; the statistics and features of the two sides stay
+//! comparable.
+
+use psc_render::camera::Camera;
+use psc_render::geometry::SceneGeometry;
+use psc_render::image_io::linear_to_srgb;
+
+use crate::align::AlignedPart;
+use crate::layer::{FitPixel, PartView};
+use crate::lighting::ShadingGrid;
+use crate::observe::{surface_at, ViewObservation};
+
+/// Builds the target of `aligned` with at most about `max_pixels` fit pixels; None when no
+/// usable pixel has a surface point and lighting.
+pub fn part_view(
+    obs: &ViewObservation,
+    aligned: &AlignedPart,
+    geometry: &SceneGeometry,
+    camera: &Camera,
+    grid: &ShadingGrid,
+    max_pixels: usize,
+    exposure: f32,
+) -> Option<PartView> {
+    let w = obs.photo.width;
+    let usable = &aligned.usable;
+    if usable.is_empty() {
+        return None;
+    }
+    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+    for &i in usable {
+        let (x, y) = (i as usize % w, i as usize / w);
+        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+    }
+    let factor = ((usable.len() as f64 / max_pixels.max(1) as f64).sqrt().ceil() as usize).max(1);
+    let (cw, ch) = ((x1 - x0 + 1).div_ceil(factor), (y1 - y0 + 1).div_ceil(factor));
+    // Per fit pixel: usable photo pixels, their linear sum and their centroid.
+    let mut count = vec![0u32; cw * ch];
+    let mut sum = vec![[0.0f64; 3]; cw * ch];
+    let mut centre = vec![[0.0f64; 2]; cw * ch];
+    for &i in usable {
+        let (x, y) = (i as usize % w, i as usize / w);
+        let c = (y - y0) / factor * cw + (x - x0) / factor;
+        count[c] += 1;
+        for k in 0..3 {
+            sum[c][k] += f64::from(obs.photo.linear[i as usize][k]);
+        }
+        centre[c][0] += x as f64 + 0.5;
+        centre[c][1] += y as f64 + 0.5;
+    }
+    let mut weight = vec![0.0f32; cw * ch];
+    let mut target = vec![[0.0f32; 3]; cw * ch];
+    let mut target_linear = vec![[0.0f32; 3]; cw * ch];
+    let mut pixels = Vec::new();
+    let step = [factor as f32 / aligned.warp.scale[0], factor as f32 / aligned.warp.scale[1]];
+    for c in 0..cw * ch {
+        if count[c] == 0 {
+            continue;
+        }
+        let n = f64::from(count[c]);
+        let photo_pos = [(centre[c][0] / n) as f32, (centre[c][1] / n) as f32];
+        let [gx, gy] = aligned.warp.to_model(photo_pos);
+        let Some(surface) = surface_at(geometry, camera, gx, gy, step[0], step[1]) else { continue };
+        if surface.part != aligned.part {
+            continue;
+        }
+        let Some(light) = grid.at(gx, gy, aligned.part) else { continue };
+        let linear = sum[c].map(|s| (s / n) as f32);
+        weight[c] = count[c] as f32 / (factor * factor) as f32;
+        target_linear[c] = linear;
+        target[c] = linear.map(linear_to_srgb);
+        pixels.push(FitPixel {
+            crop_index: c as u32,
+            uv: surface.uv,
+            duv_dx: surface.duv_dx,
+            duv_dy: surface.duv_dy,
+            bitangent_sign: surface.bitangent_sign,
+            wo_local: surface.wo_local,
+            light,
+        });
+    }
+    if pixels.is_empty() {
+        return None;
+    }
+    Some(PartView { width: cw, height: ch, origin: [x0, y0], factor, pixels, weight, target, target_linear, exposure })
+}
