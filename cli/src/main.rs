@@ -99,7 +99,7 @@ fn main() -> ExitCode {
         Command::Bake(args) => bake::run(args),
         Command::Library(args) => library::run(args),
         Command::Render(args) => render::run(args),
-        Command::Fit(args) => fit::run(args),
+        Command::Fit(args) => fit::run(args).map_err(Error::from),
     };
     match result {
         Ok(code) => code,
