@@ -9,7 +9,7 @@ use std::process::ExitCode;
 
 use psc_render::camera::{load_camera_file, Camera};
 use psc_render::{
-    compute_light_grid, image_io, render_gbuffer, truth, LightGridOptions, LightRadiances, RenderOptions, Renderer,
+    compute_light_grid, image_io, truth, LightGridOptions, LightRadiances, RenderOptions, Renderer,
     Scene,
 };
 
@@ -157,13 +157,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
 
     if args.gbuffer {
         let dir = need_out()?;
-        let gb = render_gbuffer(
-            &renderer.geometry,
-            &camera,
-            &renderer.part_names,
-            &renderer.lights.names,
-            Some(&renderer.materials),
-        );
+        let gb = renderer.gbuffer(&camera);
         gb.save(&dir)?;
         eprintln!("wrote G-buffers ({width}x{height}) to {}", dir.display());
         return Ok(ExitCode::SUCCESS);

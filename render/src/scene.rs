@@ -367,6 +367,35 @@ impl ScalarOrRgb {
 }
 
 impl LightRadiances {
+    /// Check that there is one radiance per light (`names`, the scene's lights in order) and that
+    /// every value is finite and non-negative.
+    pub fn validate(&self, names: &[String]) -> Result<(), RenderError> {
+        if self.lights.len() != names.len() {
+            return Err(RenderError::Invalid(format!(
+                "{}: {} light radiances for {} lights",
+                self.source,
+                self.lights.len(),
+                names.len()
+            )));
+        }
+        let ok = |c: &[f32; 3]| c.iter().all(|x| x.is_finite() && *x >= 0.0);
+        for (rgb, name) in self.lights.iter().zip(names) {
+            if !ok(rgb) {
+                return Err(RenderError::Invalid(format!(
+                    "{}: radiance of light '{name}' must be finite and non-negative, found {rgb:?}",
+                    self.source
+                )));
+            }
+        }
+        if !ok(&self.environment) {
+            return Err(RenderError::Invalid(format!(
+                "{}: the environment scale must be finite and non-negative, found {:?}",
+                self.source, self.environment
+            )));
+        }
+        Ok(())
+    }
+
     pub fn unit(scene: &Scene) -> Self {
         LightRadiances {
             lights: vec![[1.0; 3]; scene.lights.len()],

@@ -12,7 +12,7 @@ fn agreement(scene: &Scene) -> f64 {
     let view = &scene.views[0];
     let mut w = Vec::new();
     let r = Renderer::new(scene, scene.mtl_materials(&mut w), &LightRadiances::unit(scene)).unwrap();
-    let gb = render_gbuffer(&r.geometry, &view.camera, &r.part_names, &r.lights.names, None);
+    let gb = render_gbuffer(r.geometry(), &view.camera, r.part_names(), &r.lights().names, None);
     let (agree, total) = label_agreement(&gb, &view.labels.as_ref().unwrap().data, &view.part_labels);
     agree as f64 / total as f64
 }
