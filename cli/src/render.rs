@@ -1,16 +1,15 @@
 //! `psc render`: path-traced images, G-buffers, per-pixel light grids and per-light renders of a
 //! scene folder. A thin layer over `psc-render`.
 //!
-//! Light radiances, in order: `--lights lights.json`, else `truth/truth.json` next to the scene
-//! (a dev convenience for validation; the fit itself never reads truth/), else unit radiance.
+//! Light radiances: `--lights lights.json`, `--lights truth` (the dev scenes' truth/truth.json,
+//! validation only), else unit radiance with a warning saying so.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use psc_render::camera::{load_camera_file, Camera};
 use psc_render::{
-    compute_light_grid, image_io, truth, LightGridOptions, LightRadiances, RenderOptions, Renderer,
-    Scene,
+    compute_light_grid, image_io, truth, LightGridOptions, LightRadiances, LightsSource, RenderOptions, Renderer, Scene,
 };
 
 use crate::Failure;
@@ -60,7 +59,8 @@ pub struct Args {
     /// --light-grid, one grid per light in the same file.
     #[arg(long)]
     per_light: bool,
-    /// Light radiances: {"lights": [{"name", "radiance_rgb"}], "environment_scale"}.
+    /// Light radiances: {"lights": [{"name", "radiance_rgb"}], "environment_scale"}, or `truth`
+    /// for a dev scene's truth/truth.json (default: unit radiance, with a warning).
     #[arg(long)]
     lights: Option<PathBuf>,
     #[arg(long, value_enum, default_value_t = Materials::Mtl)]
@@ -144,7 +144,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         let library = psc_runtime::library::Library::load(&root)?;
         psc_runtime::assign::apply_assignment(assign, &library, &scene.mesh.part_names, &mut materials)?;
     }
-    let radiances = LightRadiances::resolve(&scene, args.lights.as_deref(), &mut warnings)?;
+    let radiances = LightRadiances::resolve(&scene, &LightsSource::from_arg(args.lights.as_deref()), &mut warnings)?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }

@@ -272,7 +272,13 @@ impl Renderer {
 
     /// The G-buffer of `camera` at its resolution, with the materials' normal maps.
     pub fn gbuffer(&self, camera: &Camera) -> crate::GBuffer {
-        crate::gbuffer::render_gbuffer(&self.geometry, camera, &self.part_names, &self.lights.names, Some(&self.materials))
+        crate::gbuffer::render_gbuffer(
+            &self.geometry,
+            camera,
+            &self.part_names,
+            &self.lights.names,
+            Some(&self.materials),
+        )
     }
 
     fn selection(&self, per_light: bool) -> &Distribution1D {

@@ -68,7 +68,10 @@ fn check(name: &str, value: impl Fn(Cosines<f64>, f64) -> f64, grad: impl Fn(Cos
             ("v_h", g.d_v_h, central(|x| value(Cosines { v_h: x, ..c }, r), c.v_h, h_c), slack(h_c)),
         ];
         for (what, a, n, slack) in partials {
-            assert!((a - n).abs() <= 1e-6 * a.abs().max(n.abs()) + slack, "{name}: ∂/∂{what} = {a}, finite difference {n} at {c:?}, r = {r}");
+            assert!(
+                (a - n).abs() <= 1e-6 * a.abs().max(n.abs()) + slack,
+                "{name}: ∂/∂{what} = {a}, finite difference {n} at {c:?}, r = {r}"
+            );
             worst = worst.max((a - n).abs() / (1e-6 * a.abs().max(n.abs()) + slack));
         }
     }

@@ -101,8 +101,12 @@ fn invalid_radiances_are_refused_and_change_nothing() {
     let mut w = Vec::new();
     let good = LightRadiances::unit(&scene);
     let mut r = Renderer::new(&scene, scene.mtl_materials(&mut w), &good).unwrap();
-    for bad in [vec![[1.0; 3]], vec![[1.0; 3], [-1.0, 0.0, 0.0]], vec![[f32::NAN; 3], [1.0; 3]], vec![[f32::INFINITY; 3], [1.0; 3]]]
-    {
+    for bad in [
+        vec![[1.0; 3]],
+        vec![[1.0; 3], [-1.0, 0.0, 0.0]],
+        vec![[f32::NAN; 3], [1.0; 3]],
+        vec![[f32::INFINITY; 3], [1.0; 3]],
+    ] {
         let mut l = good.clone();
         l.lights = bad.clone();
         let e = r.set_radiances(&l).expect_err("refused").to_string();

@@ -60,7 +60,7 @@ fn truth_error(dir: &std::path::Path, truth_materials: bool) -> (f64, f64, f64) 
     } else {
         scene.mtl_materials(&mut warnings)
     };
-    let radiances = LightRadiances::resolve(&scene, None, &mut warnings).unwrap();
+    let radiances = LightRadiances::resolve(&scene, &psc_render::LightsSource::Truth, &mut warnings).unwrap();
     assert!(radiances.source.ends_with("truth.json"));
     let r = Renderer::new(&scene, materials, &radiances).unwrap();
     let view = &scene.views[0];
