@@ -8,10 +8,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use psc_render::{compute_light_grid, image_io, render_gbuffer, LightGridOptions, RenderOptions, Renderer};
-use psc_runtime::view::{
-    open_view, CameraChoice, GeometryChoice, LightsChoice, MaterialsChoice, OpenedView, ViewRequest,
-};
+use psc_render::{compute_light_grid, image_io, LightGridOptions, LightsSource, RenderOptions, Renderer};
+use psc_runtime::view::{open_view, CameraChoice, GeometryChoice, MaterialsChoice, OpenedView, ViewRequest};
 
 use crate::{checks, Error, Failure, Usage};
 
@@ -121,11 +119,7 @@ fn view_request(args: &Args) -> ViewRequest {
         },
         assign: args.assign.clone(),
         library: args.lib.clone(),
-        lights: match &args.lights {
-            None => LightsChoice::Unit,
-            Some(p) if p.as_os_str() == "truth" => LightsChoice::Truth,
-            Some(p) => LightsChoice::File(p.clone()),
-        },
+        lights: LightsSource::from_arg(args.lights.as_deref()),
     }
 }
 
@@ -152,13 +146,13 @@ fn output(args: &Args) -> Result<Output, Usage> {
 
 pub fn run(args: Args) -> Result<ExitCode, Error> {
     let output = output(&args)?;
-    let OpenedView { scene, camera, width, height, materials, radiances, warnings, lights_note } =
+    let OpenedView { scene, camera, width, height, materials, radiances, warnings } =
         open_view(&view_request(&args), None)?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }
     if !args.quiet {
-        eprintln!("lights: {lights_note}");
+        eprintln!("lights: {}", radiances.source);
     }
     let renderer = Renderer::new(&scene, materials, &radiances)?;
     let folder = || match &output {
@@ -168,13 +162,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
 
     if args.gbuffer {
         let dir = folder()?;
-        let gb = render_gbuffer(
-            &renderer.geometry,
-            &camera,
-            &renderer.part_names,
-            &renderer.lights.names,
-            Some(&renderer.materials),
-        );
+        let gb = renderer.gbuffer(&camera);
         gb.save(&dir)?;
         eprintln!("wrote G-buffers ({width}x{height}) to {}", dir.display());
         return Ok(ExitCode::SUCCESS);

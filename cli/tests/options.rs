@@ -78,7 +78,7 @@ fn render_options_that_make_no_sense_are_usage_errors() {
         (v(&["render", room, "--gbuffer", "--out", &file]), 2, vec!["--out:", "is a file; expected a folder"]),
         (v(&["render", room]), 2, vec!["--out: required"]),
         (v(&["render", room, "--view", "nope", "--out", &png]), 1, vec!["no view 'nope' (views: view0)"]),
-        (v(&["render", room, "--lights", "truth", "--out", &png]), 1, vec!["asked for the true light radiances"]),
+        (v(&["render", room, "--lights", "truth", "--out", &png]), 1, vec!["truth/truth.json", "not found"]),
         (v(&["render", room, "--assign", d, "--out", &png]), 1, vec!["expected a JSON file, found a directory"]),
     ];
     check(&dir, &cases);

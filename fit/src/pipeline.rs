@@ -230,7 +230,7 @@ pub fn fit_scene(
         .views
         .iter()
         .map(|v| {
-            let obs = ViewObservation::new(v, &scene.mesh.part_names, &renderer.geometry);
+            let obs = ViewObservation::new(v, &scene.mesh.part_names, &renderer.geometry());
             progress.advance(1);
             obs
         })
@@ -239,7 +239,7 @@ pub fn fit_scene(
     lap("observe and align", &mut timings);
 
     // Lighting: the other parts' materials for the indirect light are their pixel medians.
-    renderer.materials = lighting::median_materials(&views, n_parts);
+    renderer.set_materials(lighting::median_materials(&views, n_parts))?;
     let n_slots = renderer.n_slots();
     let (radiance, light_source) = match radiances {
         Some(r) => {
@@ -278,7 +278,7 @@ pub fn fit_scene(
         progress.advance(1);
     }
     lap("fit parts", &mut timings);
-    Ok(FitResult { parts, slot_names: renderer.slot_names.clone(), radiance, light_source, timings })
+    Ok(FitResult { parts, slot_names: renderer.slot_names().to_vec(), radiance, light_source, timings })
 }
 
 fn summary(name: &str, r: &PartResult) -> String {
@@ -336,7 +336,7 @@ fn fit_one_part(
     for (v, list) in aligned.iter().enumerate() {
         let Some(a) = list.iter().find(|a| a.part == part && !a.usable.is_empty()) else { continue };
         let obs = &views[v];
-        let Some(view) = part_view(obs, a, &renderer.geometry, &obs.camera, &shading[v], options.search_pixels, 1.0)
+        let Some(view) = part_view(obs, a, &renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, 1.0)
         else {
             continue;
         };
@@ -372,7 +372,7 @@ fn fit_one_part(
         return Ok(result);
     }
     let fit_view =
-        part_view(obs, chosen, &renderer.geometry, &obs.camera, &shading[chosen.view], options.fit_pixels, 1.0)
+        part_view(obs, chosen, &renderer.geometry(), &obs.camera, &shading[chosen.view], options.fit_pixels, 1.0)
             .expect("the search view of the same pixels exists");
     result.pixels.fitted = fit_view.pixels.len();
     let mut scratch = Scratch::default();

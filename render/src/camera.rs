@@ -117,8 +117,7 @@ struct CameraFileRepr {
 }
 
 pub fn load_camera_file(path: &Path) -> Result<CameraFile, RenderError> {
-    let text = std::fs::read_to_string(path).map_err(|e| RenderError::io(path, e))?;
-    let r: CameraFileRepr = serde_json::from_str(&text).map_err(|e| RenderError::json(path, &e))?;
+    let r: CameraFileRepr = crate::json::read(path, "camera file")?;
     let size = match (r.width, r.height) {
         (Some(w), Some(h)) => Some((w, h)),
         _ => None,

@@ -99,15 +99,20 @@ pub struct RenderOutput {
 }
 
 /// Everything needed to trace a scene with given materials and light radiances.
+///
+/// The light radiances decide how next-event estimation picks lights, so they change only
+/// through [`Renderer::set_radiances`], which rebuilds that selection: a light solve that
+/// re-renders with new radiances never samples with stale distributions.
 pub struct Renderer {
-    pub geometry: SceneGeometry,
-    pub lights: AreaLights,
-    pub env: Option<EnvMap>,
-    pub materials: Vec<MaterialBinding>,
-    pub part_names: Vec<String>,
+    geometry: SceneGeometry,
+    lights: AreaLights,
+    env: Option<EnvMap>,
+    materials: Vec<MaterialBinding>,
+    part_names: Vec<String>,
+    radiances: LightRadiances,
     /// Radiance per slot (lights, then environment scale).
-    pub slot_radiance: Vec<Vec3>,
-    pub slot_names: Vec<String>,
+    slot_radiance: Vec<Vec3>,
+    slot_names: Vec<String>,
     /// Light selection for NEE weighted by power (area × luminance of radiance).
     select_power: Distribution1D,
     /// Light selection weighted by area only (per-light renders: every light gets samples).
@@ -150,26 +155,45 @@ impl Renderer {
                 scene.mesh.part_names.len()
             )));
         }
-        if radiances.lights.len() != scene.lights.len() {
-            return Err(RenderError::Invalid(format!(
-                "{} light radiances for {} lights",
-                radiances.lights.len(),
-                scene.lights.len()
-            )));
-        }
         let lights = AreaLights::new(&scene.lights);
         let geometry = SceneGeometry::new(scene, &lights);
-        let mut slot_radiance: Vec<Vec3> = radiances.lights.iter().map(|&r| Vec3::from(r)).collect();
         let mut slot_names = lights.names.clone();
         if scene.environment.is_some() {
-            slot_radiance.push(Vec3::from(radiances.environment));
             slot_names.push("environment".into());
         }
+        let mut renderer = Renderer {
+            geometry,
+            lights,
+            env: scene.environment.clone(),
+            materials,
+            part_names: scene.mesh.part_names.clone(),
+            radiances: LightRadiances::unit(scene),
+            slot_radiance: Vec::new(),
+            slot_names,
+            select_power: Distribution1D::new(&[]),
+            select_unit: Distribution1D::new(&[]),
+        };
+        renderer.set_radiances(radiances)?;
+        Ok(renderer)
+    }
+
+    /// Re-target the renderer to other light radiances (one per light, same order as the
+    /// scene's, and the environment scale), rebuilding the light selection that depends on
+    /// them. Refused (and nothing changes) when the count differs or a value is negative or
+    /// not finite.
+    pub fn set_radiances(&mut self, radiances: &LightRadiances) -> Result<(), RenderError> {
+        radiances.validate(&self.lights.names)?;
+        let mut slot_radiance: Vec<Vec3> = radiances.lights.iter().map(|&r| Vec3::from(r)).collect();
+        if self.env.is_some() {
+            slot_radiance.push(Vec3::from(radiances.environment));
+        }
+        let has_env = self.env.is_some();
+        let lights = &self.lights;
         let mk = |unit: bool| {
             let mut w: Vec<f32> = (0..lights.len())
                 .map(|k| lights.areas[k] * if unit { 1.0 } else { luminance(slot_radiance[k]).max(0.0) })
                 .collect();
-            if scene.environment.is_some() {
+            if has_env {
                 let s: f32 = w.iter().sum();
                 let env_on = unit || luminance(slot_radiance[lights.len()]) > 0.0;
                 w.push(if !env_on {
@@ -183,21 +207,78 @@ impl Renderer {
             Distribution1D::new(&w)
         };
         let (select_power, select_unit) = (mk(false), mk(true));
-        Ok(Renderer {
-            geometry,
-            lights,
-            env: scene.environment.clone(),
-            materials,
-            part_names: scene.mesh.part_names.clone(),
-            slot_radiance,
-            slot_names,
-            select_power,
-            select_unit,
-        })
+        self.select_power = select_power;
+        self.select_unit = select_unit;
+        self.slot_radiance = slot_radiance;
+        self.radiances = radiances.clone();
+        Ok(())
+    }
+
+    /// The radiances the renderer renders with.
+    pub fn radiances(&self) -> &LightRadiances {
+        &self.radiances
+    }
+
+    /// Radiance per light slot: the lights, then the environment scale if the scene has one.
+    pub fn slot_radiance(&self) -> &[Vec3] {
+        &self.slot_radiance
+    }
+
+    /// Names of the light slots: the lights, then "environment" if the scene has one.
+    pub fn slot_names(&self) -> &[String] {
+        &self.slot_names
     }
 
     pub fn n_slots(&self) -> usize {
         self.slot_radiance.len()
+    }
+
+    /// The traced geometry (model and emitters in one BVH).
+    pub fn geometry(&self) -> &SceneGeometry {
+        &self.geometry
+    }
+
+    /// The area lights (names, triangles, areas).
+    pub fn lights(&self) -> &AreaLights {
+        &self.lights
+    }
+
+    /// The environment map, if the scene has one.
+    pub fn environment(&self) -> Option<&EnvMap> {
+        self.env.as_ref()
+    }
+
+    /// One binding per model part, in the order of [`Renderer::part_names`].
+    pub fn materials(&self) -> &[MaterialBinding] {
+        &self.materials
+    }
+
+    /// Replace the material bindings (one per part, as in [`Renderer::new`]).
+    pub fn set_materials(&mut self, materials: Vec<MaterialBinding>) -> Result<(), RenderError> {
+        if materials.len() != self.part_names.len() {
+            return Err(RenderError::Invalid(format!(
+                "{} material bindings for {} parts",
+                materials.len(),
+                self.part_names.len()
+            )));
+        }
+        self.materials = materials;
+        Ok(())
+    }
+
+    pub fn part_names(&self) -> &[String] {
+        &self.part_names
+    }
+
+    /// The G-buffer of `camera` at its resolution, with the materials' normal maps.
+    pub fn gbuffer(&self, camera: &Camera) -> crate::GBuffer {
+        crate::gbuffer::render_gbuffer(
+            &self.geometry,
+            camera,
+            &self.part_names,
+            &self.lights.names,
+            Some(&self.materials),
+        )
     }
 
     fn selection(&self, per_light: bool) -> &Distribution1D {

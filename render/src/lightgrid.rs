@@ -119,7 +119,7 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
     let (w, h) = (camera.width, camera.height);
     let (gw, gh) = (w.div_ceil(opts.stride), h.div_ceil(opts.stride));
     let ns = r.n_slots();
-    let n_parts = r.part_names.len() as u32;
+    let n_parts = r.part_names().len() as u32;
     let bar = progress_bar(opts.progress, (gw * gh) as u64, "light grid");
     let cfg = PathConfig {
         max_depth: opts.max_depth.saturating_sub(1),
@@ -142,7 +142,7 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
                     t: [0.0; 3],
                     slots: vec![Vec3::ZERO; ns * BINS],
                 };
-                let hit = match r.geometry.trace(camera.position, d, f32::INFINITY) {
+                let hit = match r.geometry().trace(camera.position, d, f32::INFINITY) {
                     Traced::Surface(hit) => hit,
                     Traced::Emitter { light, .. } => {
                         cell.part = (n_parts + 1 + light) as u16;
@@ -154,10 +154,10 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
                         return cell;
                     }
                 };
-                let tn = r.materials[hit.part as usize].eval(hit.uv).normal;
-                let sf = r.geometry.shading_frame(&hit, -d, tn);
+                let tn = r.materials()[hit.part as usize].eval(hit.uv).normal;
+                let sf = r.geometry().shading_frame(&hit, -d, tn);
                 let frame = crate::brdf::Frame::new(sf.frame.n, sf.tangent);
-                let origin = r.geometry.offset(hit.p, sf.ng);
+                let origin = r.geometry().offset(hit.p, sf.ng);
                 let mut acc = vec![Vec3::ZERO; ns];
                 let inv = 1.0 / opts.samples_per_bin as f32;
                 for i in 0..GRID_THETA_BINS {
@@ -194,7 +194,7 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
     bar.finish_and_clear();
     let mut radiance = vec![0.0f32; gw * gh * BINS * 3];
     let mut per_slot: Vec<(String, Vec<f32>)> = if opts.per_light {
-        r.slot_names.iter().map(|n| (n.clone(), vec![0.0f32; gw * gh * BINS * 3])).collect()
+        r.slot_names().iter().map(|n| (n.clone(), vec![0.0f32; gw * gh * BINS * 3])).collect()
     } else {
         Vec::new()
     };
@@ -203,7 +203,7 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
             let mut sum = Vec3::ZERO;
             for k in 0..ns {
                 let v = cell.slots[k * BINS + b];
-                sum += v * r.slot_radiance[k];
+                sum += v * r.slot_radiance()[k];
                 if opts.per_light {
                     per_slot[k].1[(c * BINS + b) * 3..(c * BINS + b) * 3 + 3].copy_from_slice(&v.to_array());
                 }

@@ -12,7 +12,7 @@ fn agreement(scene: &Scene) -> f64 {
     let view = &scene.views[0];
     let mut w = Vec::new();
     let r = Renderer::new(scene, scene.mtl_materials(&mut w), &LightRadiances::unit(scene)).unwrap();
-    let gb = render_gbuffer(&r.geometry, &view.camera, &r.part_names, &r.lights.names, None);
+    let gb = render_gbuffer(r.geometry(), &view.camera, r.part_names(), &r.lights().names, None);
     let (agree, total) = label_agreement(&gb, &view.labels.as_ref().unwrap().data, &view.part_labels);
     agree as f64 / total as f64
 }
@@ -60,7 +60,7 @@ fn truth_error(dir: &std::path::Path, truth_materials: bool) -> (f64, f64, f64) 
     } else {
         scene.mtl_materials(&mut warnings)
     };
-    let radiances = LightRadiances::resolve(&scene, None, &mut warnings).unwrap();
+    let radiances = LightRadiances::resolve(&scene, &psc_render::LightsSource::Truth, &mut warnings).unwrap();
     assert!(radiances.source.ends_with("truth.json"));
     let r = Renderer::new(&scene, materials, &radiances).unwrap();
     let view = &scene.views[0];

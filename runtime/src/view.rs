@@ -7,18 +7,19 @@
 //!   size overrides either.
 //! - Materials: the MTL's, or the dev scenes' true materials when asked for by name; then an
 //!   assignment file binds library graphs to the parts it names.
-//! - Light radiances: a lights file, or the true radiances when asked for by name, or by default
-//!   every light and the environment at unit radiance (the note says which, for the user).
+//! - Light radiances ([`LightsSource`]): a lights file, or the true radiances when asked for by
+//!   name, or by default every light and the environment at unit radiance (with a warning
+//!   saying so).
 //!
 //! Ground truth is read only when a choice names it ([`GeometryChoice::Truth`],
-//! [`MaterialsChoice::Truth`], [`LightsChoice::Truth`]), through `psc_render::truth`.
+//! [`MaterialsChoice::Truth`], [`LightsSource::Truth`]), through `psc_render::truth`.
 
 use std::fmt;
 use std::path::PathBuf;
 
 use psc_render::camera::{load_camera_file, Camera};
 use psc_render::material::MaterialBinding;
-use psc_render::{truth, LightRadiances, RenderError, Scene};
+use psc_render::{truth, LightRadiances, LightsSource, RenderError, Scene};
 
 use crate::assign::{AssignError, Assignment};
 use crate::library::{default_library_root, Library, LibraryError};
@@ -55,21 +56,9 @@ pub enum MaterialsChoice {
     Truth,
 }
 
-/// The light radiances.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub enum LightsChoice {
-    /// Every light and the environment at unit radiance.
-    #[default]
-    Unit,
-    /// A lights file (`{"lights": [{"name", "radiance_rgb"}], "environment_scale"}`).
-    File(PathBuf),
-    /// The radiances in the dev scenes' `truth/truth.json` (validation only).
-    Truth,
-}
-
 /// What to open. `Default` is the scene's first view with the model, MTL materials and unit
 /// radiance; set `scene` and whatever else differs.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct ViewRequest {
     pub scene: PathBuf,
     pub geometry: GeometryChoice,
@@ -81,7 +70,8 @@ pub struct ViewRequest {
     pub assign: Option<PathBuf>,
     /// The library for `assign` when the caller passes none (default: the shipped graphs/).
     pub library: Option<PathBuf>,
-    pub lights: LightsChoice,
+    /// The radiances: unit (said in a warning), a lights file, or the truth.
+    pub lights: LightsSource,
 }
 
 /// A scene ready to render from one camera.
@@ -95,8 +85,21 @@ pub struct OpenedView {
     pub radiances: LightRadiances,
     /// Everything the user should see: the scene's warnings, then those of materials and lights.
     pub warnings: Vec<String>,
-    /// Where the radiances came from, in words, for the user.
-    pub lights_note: String,
+}
+
+impl Default for ViewRequest {
+    fn default() -> Self {
+        ViewRequest {
+            scene: PathBuf::new(),
+            geometry: GeometryChoice::Model,
+            camera: CameraChoice::FirstView,
+            size: None,
+            materials: MaterialsChoice::Mtl,
+            assign: None,
+            library: None,
+            lights: LightsSource::Default,
+        }
+    }
 }
 
 /// Why a view could not be opened.
@@ -158,7 +161,7 @@ pub fn open_view(req: &ViewRequest, library: Option<&Library>) -> Result<OpenedV
         GeometryChoice::Model => None,
         GeometryChoice::Truth => Some(
             truth::truth_mesh(&req.scene)
-                .ok_or_else(|| OpenError::NoTruth { what: "geometry (scene_true.obj)", scene: req.scene.clone() })?,
+                .ok_or_else(|| OpenError::NoTruth { what: "geometry", scene: req.scene.clone() })?,
         ),
     };
     let scene = Scene::load_with_mesh(&req.scene, mesh_override.as_deref())?;
@@ -205,24 +208,6 @@ pub fn open_view(req: &ViewRequest, library: Option<&Library>) -> Result<OpenedV
             .map_err(|e| OpenError::Assign(e.in_file(path)))?;
     }
 
-    let (radiances, lights_note) = match &req.lights {
-        LightsChoice::Unit => (
-            LightRadiances::unit(&scene),
-            "every light and the environment at unit radiance (no lights file given)".to_string(),
-        ),
-        LightsChoice::File(path) => {
-            (LightRadiances::from_file(path, &scene, &mut warnings)?, format!("radiances from {}", path.display()))
-        }
-        LightsChoice::Truth => {
-            let path = truth::truth_dir(&req.scene).join("truth.json");
-            if !path.is_file() {
-                return Err(OpenError::NoTruth { what: "light radiances (truth.json)", scene: req.scene.clone() });
-            }
-            (
-                LightRadiances::from_file(&path, &scene, &mut warnings)?,
-                format!("true radiances from {}", path.display()),
-            )
-        }
-    };
-    Ok(OpenedView { scene, camera, width, height, materials, radiances, warnings, lights_note })
+    let radiances = LightRadiances::resolve(&scene, &req.lights, &mut warnings)?;
+    Ok(OpenedView { scene, camera, width, height, materials, radiances, warnings })
 }

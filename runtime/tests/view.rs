@@ -4,10 +4,9 @@
 
 use std::path::{Path, PathBuf};
 
+use psc_render::LightsSource;
 use psc_runtime::lookup::{find_graph, LookupError};
-use psc_runtime::view::{
-    open_view, CameraChoice, GeometryChoice, LightsChoice, MaterialsChoice, OpenError, ViewRequest,
-};
+use psc_runtime::view::{open_view, CameraChoice, GeometryChoice, MaterialsChoice, OpenError, ViewRequest};
 
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
@@ -52,7 +51,8 @@ fn defaults_are_the_first_view_the_model_the_mtl_and_unit_lights() {
     assert_eq!(v.camera.position.to_array(), photo.camera.position.to_array());
     assert_eq!(v.materials.len(), v.scene.mesh.part_names.len());
     assert!(v.radiances.lights.iter().all(|r| *r == [1.0; 3]));
-    assert!(v.lights_note.contains("unit radiance"), "{}", v.lights_note);
+    assert!(v.radiances.source.contains("unit radiance"), "{}", v.radiances.source);
+    assert!(v.warnings.iter().any(|w| w.contains("no lights file given")), "{:?}", v.warnings);
 }
 
 #[test]
@@ -68,7 +68,7 @@ fn size_camera_file_assignment_and_lights_file_are_applied() {
     let req = ViewRequest {
         camera: CameraChoice::File(cam.clone()),
         assign: Some(room.join("materials.json")),
-        lights: LightsChoice::File(room.join("lights.json")),
+        lights: LightsSource::File(room.join("lights.json")),
         ..room_request()
     };
     let v = open_view(&req, None).unwrap();
@@ -88,7 +88,7 @@ fn unknown_views_and_missing_truth_are_errors() {
     for req in [
         ViewRequest { geometry: GeometryChoice::Truth, ..room_request() },
         ViewRequest { materials: MaterialsChoice::Truth, ..room_request() },
-        ViewRequest { lights: LightsChoice::Truth, ..room_request() },
+        ViewRequest { lights: LightsSource::Truth, ..room_request() },
     ] {
         let e = open_view(&req, None).err().expect("the example has no ground truth");
         assert!(e.to_string().contains("asked for the true") || e.to_string().contains("truth"), "{e}");
@@ -107,13 +107,13 @@ fn truth_is_read_only_when_asked_for_by_name() {
     let req = ViewRequest {
         scene: dir.clone(),
         assign: Some(dir.join("materials.json")),
-        lights: LightsChoice::File(dir.join("lights.json")),
+        lights: LightsSource::File(dir.join("lights.json")),
         ..Default::default()
     };
     let v = open_view(&req, None).expect("truth/ is not read");
     assert!(v.warnings.iter().all(|w| !w.contains("truth")), "{:?}", v.warnings);
     for (what, req) in [
-        ("lights", ViewRequest { lights: LightsChoice::Truth, ..req.clone() }),
+        ("lights", ViewRequest { lights: LightsSource::Truth, ..req.clone() }),
         ("materials", ViewRequest { materials: MaterialsChoice::Truth, ..req.clone() }),
         ("geometry", ViewRequest { geometry: GeometryChoice::Truth, ..req.clone() }),
     ] {

@@ -35,4 +35,3 @@ pub fn dev_scene(name: &str, test: &str) -> Option<PathBuf> {
 pub fn all_dev_scenes(test: &str) -> Option<Vec<PathBuf>> {
     ["dev_1", "dev_2", "dev_3", "dev_4"].iter().map(|n| dev_scene(n, test)).collect()
 }
-

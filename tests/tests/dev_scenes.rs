@@ -5,8 +5,9 @@
 
 use std::path::Path;
 
+use psc_render::LightsSource;
 use psc_render::{RenderOptions, Renderer};
-use psc_runtime::view::{open_view, GeometryChoice, LightsChoice, MaterialsChoice, OpenedView, ViewRequest};
+use psc_runtime::view::{open_view, GeometryChoice, MaterialsChoice, OpenedView, ViewRequest};
 use psc_tests::dev_scenes::{all_dev_scenes, dev_scene};
 
 fn render_small(v: &OpenedView) -> Vec<[f32; 3]> {
@@ -23,12 +24,12 @@ fn truth_choices_open_every_dev_scene() {
             scene: dir.clone(),
             geometry: GeometryChoice::Truth,
             materials: MaterialsChoice::Truth,
-            lights: LightsChoice::Truth,
+            lights: LightsSource::Truth,
             size: Some((16, 12)),
             ..Default::default()
         };
         let v = open_view(&truth, None).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
-        assert!(v.lights_note.contains("true radiances"), "{}", v.lights_note);
+        assert!(v.radiances.source.contains("truth.json"), "{}", v.radiances.source);
         assert!(v.radiances.lights.iter().any(|r| *r != [1.0; 3]), "{}: unit radiances from truth?", dir.display());
         let img = render_small(&v);
         assert!(img.iter().any(|p| p.iter().any(|&c| c > 0.0)), "{}: a black image", dir.display());
