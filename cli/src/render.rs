@@ -97,6 +97,9 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Replace an existing --out folder (G-buffers, light grid, per-light images) whole.
+    #[arg(long)]
+    force: bool,
 }
 
 fn parse_size(s: &str) -> Result<(usize, usize), String> {
@@ -153,12 +156,13 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     }
     let renderer = Renderer::new(&scene, materials, &radiances)?;
     let out = args.out.clone();
+    let replace = if args.force { psc_base::output::Replace::Yes } else { psc_base::output::Replace::No };
     let need_out = || out.clone().ok_or_else(|| Failure("--out is required".into()));
 
     if args.gbuffer {
         let dir = need_out()?;
         let gb = renderer.gbuffer(&camera);
-        gb.save(&dir)?;
+        gb.write_folder(&dir, replace)?;
         eprintln!("wrote G-buffers ({width}x{height}) to {}", dir.display());
         return Ok(ExitCode::SUCCESS);
     }
@@ -177,7 +181,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         };
         let start = std::time::Instant::now();
         let grid = compute_light_grid(&renderer, &camera, &opts)?;
-        grid.save(&dir)?;
+        grid.write_folder(&dir, replace)?;
         eprintln!(
             "wrote a {}x{} light grid (8x16 bins) to {} in {:.2} s",
             grid.grid_width,
@@ -231,11 +235,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     let result = renderer.render(&camera, &opts)?;
     if args.per_light {
         let dir = need_out()?;
-        std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-        for (name, img) in &result.per_light {
-            image_io::write_rgb(&dir.join(format!("{name}.exr")), width, height, img)?;
-        }
-        image_io::write_rgb(&dir.join("combined.exr"), width, height, &result.image)?;
+        result.write_per_light_folder(&dir, replace)?;
         eprintln!(
             "wrote {} per-light images (unit radiance) and combined.exr to {} in {:.2} s",
             result.per_light.len(),
