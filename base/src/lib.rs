@@ -1,12 +1,16 @@
 //! `psc-base`: the one copy of small, domain-free helpers that crates on both sides of the
 //! workspace need (the compiler chain and the image chain share no other crate).
 //!
-//! Owns: deterministic random numbers ([`SplitMix64`], [`mix64`]).
+//! Owns: deterministic random numbers ([`SplitMix64`], [`mix64`]); outputs that appear whole or
+//! not at all ([`output`]: atomic file writes, staged output folders, removal of temporaries on
+//! error, drop, SIGINT and SIGTERM).
 //!
-//! Must never: depend on another photoscene crate or on anything but `std`; know about graphs,
-//! kernels, scenes or images.
+//! Must never: depend on another photoscene crate or on anything but `std` and `ctrlc` (the
+//! signal handler of [`output`]); know about graphs, kernels, scenes or images.
 
 #![forbid(unsafe_code)]
+
+pub mod output;
 
 /// SplitMix64 finaliser: a good 64-bit mixing function.
 #[inline]

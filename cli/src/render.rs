@@ -11,6 +11,8 @@ use std::process::ExitCode;
 use psc_render::{compute_light_grid, image_io, LightGridOptions, LightsSource, RenderOptions, Renderer};
 use psc_runtime::view::{open_view, CameraChoice, GeometryChoice, MaterialsChoice, OpenedView, ViewRequest};
 
+use psc_base::output::Replace;
+
 use crate::{checks, Error, Failure, Usage};
 
 #[derive(clap::ValueEnum, Clone, Copy, PartialEq, Eq, Debug)]
@@ -97,6 +99,9 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+    /// Replace an existing --out folder (G-buffers, light grid, per-light images) whole.
+    #[arg(long)]
+    force: bool,
 }
 
 /// The options as a request for the runtime.
@@ -155,6 +160,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
         eprintln!("lights: {}", radiances.source);
     }
     let renderer = Renderer::new(&scene, materials, &radiances)?;
+    let replace = if args.force { Replace::Yes } else { Replace::No };
     let folder = || match &output {
         Output::Folder(dir) => Ok(dir.clone()),
         _ => Err(Failure("internal: no output folder for a folder output".into())),
@@ -163,7 +169,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
     if args.gbuffer {
         let dir = folder()?;
         let gb = renderer.gbuffer(&camera);
-        gb.save(&dir)?;
+        gb.write_folder(&dir, replace)?;
         eprintln!("wrote G-buffers ({width}x{height}) to {}", dir.display());
         return Ok(ExitCode::SUCCESS);
     }
@@ -182,7 +188,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
         };
         let start = std::time::Instant::now();
         let grid = compute_light_grid(&renderer, &camera, &opts)?;
-        grid.save(&dir)?;
+        grid.write_folder(&dir, replace)?;
         eprintln!(
             "wrote a {}x{} light grid (8x16 bins) to {} in {:.2} s",
             grid.grid_width,
@@ -236,11 +242,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
     let result = renderer.render(&camera, &opts)?;
     if args.per_light {
         let dir = folder()?;
-        std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-        for (name, img) in &result.per_light {
-            image_io::write_rgb(&dir.join(format!("{name}.exr")), width, height, img)?;
-        }
-        image_io::write_rgb(&dir.join("combined.exr"), width, height, &result.image)?;
+        result.write_per_light_folder(&dir, replace)?;
         eprintln!(
             "wrote {} per-light images (unit radiance) and combined.exr to {} in {:.2} s",
             result.per_light.len(),

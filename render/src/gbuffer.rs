@@ -9,6 +9,7 @@
 
 use std::path::Path;
 
+use psc_base::output::{Replace, StagedDir};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -123,8 +124,8 @@ impl GBuffer {
     /// Write `dir/part_id.png` (16-bit), `uv.exr` (u, v, 0), `normal_geometric.exr`,
     /// `normal_shading.exr`, `tangent.exr`, `bitangent.exr`, `position.exr`, `depth.exr`
     /// (depth in all three channels) and `gbuffer.json` (id → name, file list).
+    /// The folder must exist; [`GBuffer::write_folder`] makes a new folder whole.
     pub fn save(&self, dir: &Path) -> Result<(), RenderError> {
-        std::fs::create_dir_all(dir).map_err(|e| RenderError::io(dir, e))?;
         let (w, h) = (self.width, self.height);
         image_io::write_gray16(&dir.join("part_id.png"), w, h, &self.part_id)?;
         let uv: Vec<[f32; 3]> = self.uv.iter().map(|u| [u[0], u[1], 0.0]).collect();
@@ -156,6 +157,17 @@ impl GBuffer {
         };
         let json = serde_json::to_vec_pretty(&index).map_err(|e| RenderError::Invalid(e.to_string()))?;
         image_io::atomic_write(&dir.join("gbuffer.json"), &json)
+    }
+}
+
+impl GBuffer {
+    /// Write the G-buffer files (see [`GBuffer::save`]) as the new folder `dest`, which appears
+    /// whole or not at all; an existing `dest` is refused unless `replace` is `Replace::Yes`.
+    pub fn write_folder(&self, dest: &Path, replace: Replace) -> Result<(), RenderError> {
+        let staged = StagedDir::new(dest, replace)?;
+        self.save(staged.path())?;
+        staged.commit()?;
+        Ok(())
     }
 }
 

@@ -1,8 +1,8 @@
-//! Image input and output: sRGB PNG/JPEG (8/16 bit), linear EXR, label images, and atomic
-//! writes (every output goes to a temporary file in the destination folder, then is renamed).
+//! Image input and output: sRGB PNG/JPEG (8/16 bit), linear EXR, label images. Every file is
+//! written atomically (`psc_base::output`), so a reader never sees half of one.
 
-use std::io::{Cursor, Write};
-use std::path::{Path, PathBuf};
+use std::io::Cursor;
+use std::path::Path;
 
 use crate::RenderError;
 
@@ -102,26 +102,10 @@ pub fn read_labels(path: &Path) -> Result<(usize, usize, Vec<u16>), RenderError>
     Ok((w, h, data))
 }
 
-/// Write `bytes` to `path` through a temporary file in the same folder and a rename, so that a
-/// reader never sees a half-written file.
+/// Write `bytes` to `path` atomically (`psc_base::output::write_atomic`: a temporary in the same
+/// folder, synced, renamed into place; removed on error and on SIGINT/SIGTERM).
 pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<(), RenderError> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path.file_name().ok_or_else(|| RenderError::io(path, "not a file path"))?;
-    let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(RenderError::io(path, e));
-    }
-    Ok(())
+    Ok(psc_base::output::write_atomic(path, bytes)?)
 }
 
 /// Encode an RGB float image as an uncompressed-float EXR in memory.

@@ -14,6 +14,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use psc_base::output::{Replace, StagedDir};
 use rayon::prelude::*;
 
 use crate::brdf::Karis;
@@ -96,6 +97,47 @@ pub struct RenderOutput {
     /// Rays cast (camera, bounce and shadow rays).
     pub rays: u64,
     pub seconds: f64,
+}
+
+impl RenderOutput {
+    /// Write the per-light images (`<slot>.exr`, linear, unit radiance) and `combined.exr` (the
+    /// render) as the new folder `dest`, which appears whole or not at all; an existing `dest`
+    /// is refused unless `replace` is `Replace::Yes`.
+    pub fn write_per_light_folder(&self, dest: &std::path::Path, replace: Replace) -> Result<(), RenderError> {
+        let staged = StagedDir::new(dest, replace)?;
+        let names: Vec<&str> = self.per_light.iter().map(|(n, _)| n.as_str()).collect();
+        for ((_, img), file) in self.per_light.iter().zip(slot_file_names(&names)) {
+            crate::image_io::write_rgb(&staged.path().join(file), self.width, self.height, img)?;
+        }
+        crate::image_io::write_rgb(&staged.path().join("combined.exr"), self.width, self.height, &self.image)?;
+        staged.commit()?;
+        Ok(())
+    }
+}
+
+/// File names (`<name>.exr`) for light slots: characters other than ASCII letters, digits, `_`,
+/// `-` and `.` become `_` (a light named `../x` cannot write outside the folder), a leading `.`
+/// too, and names that collide (with each other or with `combined`) get a `_<k>` suffix.
+pub fn slot_file_names(names: &[&str]) -> Vec<String> {
+    let mut used: Vec<String> = vec!["combined".into()];
+    names
+        .iter()
+        .map(|n| {
+            let mut base: String =
+                n.chars().map(|c| if c.is_ascii_alphanumeric() || "_-.".contains(c) { c } else { '_' }).collect();
+            if base.is_empty() || base.starts_with('.') {
+                base.insert(0, '_');
+            }
+            let mut name = base.clone();
+            let mut k = 1;
+            while used.contains(&name) {
+                name = format!("{base}_{k}");
+                k += 1;
+            }
+            used.push(name.clone());
+            format!("{name}.exr")
+        })
+        .collect()
 }
 
 /// Everything needed to trace a scene with given materials and light radiances.

@@ -20,6 +20,7 @@ use std::f32::consts::PI;
 use std::path::Path;
 
 use glam::Vec3;
+use psc_base::output::{Replace, StagedDir};
 use rayon::prelude::*;
 use serde_json::json;
 
@@ -234,9 +235,9 @@ impl LightGrid {
         [self.radiance[o], self.radiance[o + 1], self.radiance[o + 2]]
     }
 
-    /// Write `dir/lightgrid.json` and `dir/lightgrid.bin` (format in the module docs).
+    /// Write `dir/lightgrid.json` and `dir/lightgrid.bin` (format in the module docs) into the
+    /// existing folder `dir`; [`LightGrid::write_folder`] makes a new folder whole.
     pub fn save(&self, dir: &Path) -> Result<(), RenderError> {
-        std::fs::create_dir_all(dir).map_err(|e| RenderError::io(dir, e))?;
         let (gw, gh) = (self.grid_width, self.grid_height);
         let mut bin: Vec<u8> = Vec::new();
         let mut arrays = Vec::new();
@@ -277,5 +278,14 @@ impl LightGrid {
         image_io::atomic_write(&dir.join("lightgrid.bin"), &bin)?;
         let text = serde_json::to_vec_pretty(&header).map_err(|e| RenderError::Invalid(e.to_string()))?;
         image_io::atomic_write(&dir.join("lightgrid.json"), &text)
+    }
+
+    /// Write the grid (see [`LightGrid::save`]) as the new folder `dest`, which appears whole or
+    /// not at all; an existing `dest` is refused unless `replace` is `Replace::Yes`.
+    pub fn write_folder(&self, dest: &Path, replace: Replace) -> Result<(), RenderError> {
+        let staged = StagedDir::new(dest, replace)?;
+        self.save(staged.path())?;
+        staged.commit()?;
+        Ok(())
     }
 }
