@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
+use psc_base::output::{Replace, StagedDir};
 use psc_base::SplitMix64;
 use psc_runtime::bake;
 use psc_runtime::library::Material;
@@ -34,16 +35,22 @@ pub struct Args {
     /// Seed of the random variants.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Output folder.
+    /// Output folder, written whole or not at all.
     #[arg(long, default_value = "bake")]
     pub out: PathBuf,
+    /// Replace an existing --out folder whole (without it, an existing folder is refused).
+    #[arg(long)]
+    pub force: bool,
     /// Library root for `import` and for graph names (default: the shipped graphs/ folder).
     #[arg(long)]
     pub lib: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> Result<ExitCode, Error> {
-    checks::folder_path("--out", &args.out)?;
+    let replace = if args.force { Replace::Yes } else { Replace::No };
+    checks::new_folder("--out", &args.out, replace)?;
+    // Refused at once when --out exists (without --force), before compiling anything.
+    let staged = StagedDir::new(&args.out, replace)?;
     let graph = find_graph(&args.graph, args.name.as_deref(), args.lib.as_deref())?;
     let space = ParamSpace::new(&graph.info);
     let params = match &args.params {
@@ -58,15 +65,19 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
     let info = &material.graph.info;
     let eval = |p: &[f32], u: &[f32], v: &[f32]| material.kernel.eval(p, u, v).map_err(|e| e.to_string());
 
-    let mut jobs = vec![(info.name.clone(), params)];
+    // One variant at a time, baked, written and dropped: memory stays that of one bake however
+    // many variants are asked for. The random vectors are drawn in the same order as always.
+    let started = Instant::now();
     let mut rng = SplitMix64::new(args.seed);
-    for k in 0..args.random {
-        jobs.push((format!("{}_random{:02}", info.name, k + 1), space.random(&mut rng)));
-    }
-    for (stem, p) in &jobs {
-        let started = Instant::now();
-        let maps = bake::bake(&eval, p, args.size).map_err(Failure)?;
-        let eval_time = started.elapsed();
+    let mut files = 0;
+    for k in 0..=args.random {
+        let (stem, p) = match k {
+            0 => (info.name.clone(), params.clone()),
+            k => (format!("{}_random{k:02}", info.name), space.random(&mut rng)),
+        };
+        let bake_started = Instant::now();
+        let maps = bake::bake(&eval, &p, args.size).map_err(Failure)?;
+        let eval_time = bake_started.elapsed();
         let bad = maps
             .albedo
             .iter()
@@ -78,20 +89,21 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
         if bad > 0 {
             return Err(Failure(format!("{stem}: {bad} non-finite values; nothing written")).into());
         }
-        let written = bake::write_maps(&maps, &args.out, stem)
+        let written = bake::write_maps(&maps, staged.path(), &stem)
             .map_err(|e| Failure(format!("cannot write to {}: {e}", args.out.display())))?;
-        let json_path = args.out.join(format!("{stem}_params.json"));
-        let json = serde_json::to_string_pretty(&space.to_json(p)?)?;
-        bake::write_atomic(&json_path, |tmp| std::fs::write(tmp, &json))
-            .map_err(|e| Failure(format!("cannot write {}: {e}", json_path.display())))?;
+        let json_path = staged.path().join(format!("{stem}_params.json"));
+        let json = serde_json::to_string_pretty(&space.to_json(&p)?)?;
+        std::fs::write(&json_path, json).map_err(|e| Failure(format!("cannot write {}: {e}", json_path.display())))?;
+        files += written.len() + 1;
         eprintln!(
-            "{stem}: {}² evaluated in {:.2} s, {} files written to {} in {:.2} s total",
+            "{stem}: {}² evaluated in {:.2} s, {} files in {:.2} s",
             args.size,
             eval_time.as_secs_f64(),
             written.len() + 1,
-            args.out.display(),
-            started.elapsed().as_secs_f64()
+            bake_started.elapsed().as_secs_f64()
         );
     }
+    let dest = staged.commit()?;
+    eprintln!("wrote {files} files to {} in {:.2} s", dest.display(), started.elapsed().as_secs_f64());
     Ok(ExitCode::SUCCESS)
 }

@@ -3,7 +3,9 @@
 
 use std::path::Path;
 
-use crate::Usage;
+use psc_base::output::{OutputError, Replace};
+
+use crate::{Error, Failure, Usage};
 
 /// `path` is to be written as an image file with one of `extensions` (lower case, no dot).
 pub fn image_path(option: &str, path: &Path, extensions: &[&str]) -> Result<(), Usage> {
@@ -25,6 +27,16 @@ pub fn image_path(option: &str, path: &Path, extensions: &[&str]) -> Result<(), 
 pub fn folder_path(option: &str, path: &Path) -> Result<(), Usage> {
     if path.exists() && !path.is_dir() {
         return Err(Usage(format!("{option}: {} is a file; expected a folder to write into", path.display())));
+    }
+    Ok(())
+}
+
+/// `path` is to be written as a new folder: not a file, and not an existing folder unless it
+/// may be replaced (`--force`). Checked before any work; the staged write checks again.
+pub fn new_folder(option: &str, path: &Path, replace: Replace) -> Result<(), Error> {
+    folder_path(option, path)?;
+    if replace == Replace::No && path.exists() {
+        return Err(Failure(OutputError::Exists(path.to_path_buf()).to_string()).into());
     }
     Ok(())
 }

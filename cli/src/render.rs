@@ -136,16 +136,30 @@ enum Output {
     Nothing,
 }
 
-fn output(args: &Args) -> Result<Output, Usage> {
+fn output(args: &Args) -> Result<Output, Error> {
     let folder_mode = args.gbuffer || args.light_grid || args.per_light;
     match (&args.out, folder_mode) {
         (None, _) if args.bench => Ok(Output::Nothing),
-        (None, true) => Err(Usage("--out: required; expected the folder to write into".into())),
+        (None, true) => Err(Usage("--out: required; expected the folder to write into".into()).into()),
         (None, false) => {
-            Err(Usage("--out: required; expected an image path ending in .png (sRGB) or .exr (linear)".into()))
+            Err(Usage("--out: required; expected an image path ending in .png (sRGB) or .exr (linear)".into()).into())
         }
-        (Some(p), true) => checks::folder_path("--out", p).map(|()| Output::Folder(p.clone())),
-        (Some(p), false) => checks::image_path("--out", p, &["png", "exr"]).map(|()| Output::Image(p.clone())),
+        (Some(p), true) => {
+            checks::new_folder("--out", p, replace(args))?;
+            Ok(Output::Folder(p.clone()))
+        }
+        (Some(p), false) => {
+            checks::image_path("--out", p, &["png", "exr"])?;
+            Ok(Output::Image(p.clone()))
+        }
+    }
+}
+
+fn replace(args: &Args) -> Replace {
+    if args.force {
+        Replace::Yes
+    } else {
+        Replace::No
     }
 }
 
@@ -160,7 +174,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
         eprintln!("lights: {}", radiances.source);
     }
     let renderer = Renderer::new(&scene, materials, &radiances)?;
-    let replace = if args.force { Replace::Yes } else { Replace::No };
+    let replace = replace(&args);
     let folder = || match &output {
         Output::Folder(dir) => Ok(dir.clone()),
         _ => Err(Failure("internal: no output folder for a folder output".into())),

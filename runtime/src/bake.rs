@@ -6,11 +6,14 @@
 //! space does, so the written normal map is a standard OpenGL (+Y up) map. Graphs are periodic
 //! over the unit tile, so every baked map tiles seamlessly at any size.
 //!
-//! Every file is written to a temporary name in the destination folder and renamed into place,
-//! so a failed or interrupted bake never leaves a half-written output.
+//! Single files (`write_png_rgb`, `write_exr`, …) are written atomically through
+//! `psc_base::output`; a set of maps ([`write_maps`]) goes into a folder the caller stages, so a
+//! failed or interrupted bake never leaves a half-written or mixed output.
 
 use std::io;
 use std::path::{Path, PathBuf};
+
+use psc_base::output::write_atomic_with;
 
 use crate::kernel::grid_uv;
 
@@ -82,63 +85,53 @@ fn to_u8(x: f32) -> u8 {
     }
 }
 
-/// Writes `bytes` through a temporary file in the same folder, then renames it into place.
-pub fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> io::Result<()>) -> io::Result<()> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().and_then(|s| s.to_str()).unwrap_or("out");
-    // Keep the real extension last so the image encoders pick the right format.
-    let tmp = dir.join(format!(".{}.{}.tmp.{name}", name, std::process::id()));
-    let result = write(&tmp).and_then(|_| std::fs::rename(&tmp, path));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
-}
-
 fn io_err(e: impl std::fmt::Display) -> io::Error {
     io::Error::other(e.to_string())
 }
 
-/// Writes an 8-bit RGB PNG.
+fn save_png(path: &Path, size: (u32, u32), pixels: &[u8], color: image::ColorType) -> io::Result<()> {
+    image::save_buffer_with_format(path, pixels, size.0, size.1, color, image::ImageFormat::Png).map_err(io_err)
+}
+
+/// Writes an 8-bit RGB PNG atomically (`psc_base::output::write_atomic_with`).
 pub fn write_png_rgb(path: &Path, size: (u32, u32), rgb: &[u8]) -> io::Result<()> {
-    write_atomic(path, |tmp| {
-        image::save_buffer_with_format(tmp, rgb, size.0, size.1, image::ColorType::Rgb8, image::ImageFormat::Png)
-            .map_err(io_err)
-    })
+    write_atomic_with(path, |tmp| save_png(tmp, size, rgb, image::ColorType::Rgb8)).map_err(io::Error::from)
 }
 
-/// Writes an 8-bit greyscale PNG.
+/// Writes an 8-bit greyscale PNG atomically.
 pub fn write_png_gray(path: &Path, size: (u32, u32), gray: &[u8]) -> io::Result<()> {
-    write_atomic(path, |tmp| {
-        image::save_buffer_with_format(tmp, gray, size.0, size.1, image::ColorType::L8, image::ImageFormat::Png)
-            .map_err(io_err)
-    })
+    write_atomic_with(path, |tmp| save_png(tmp, size, gray, image::ColorType::L8)).map_err(io::Error::from)
 }
 
-/// Writes a 32-bit float EXR with RGB channels (`channels` = 3) or one `Y` channel.
+/// Writes a 32-bit float EXR with RGB channels (`channels` = 3) or one `Y` channel, atomically.
 pub fn write_exr(path: &Path, size: usize, data: &[f32], channels: usize) -> io::Result<()> {
+    write_atomic_with(path, |tmp| save_exr(tmp, size, data, channels)).map_err(io::Error::from)
+}
+
+fn save_exr(path: &Path, size: usize, data: &[f32], channels: usize) -> io::Result<()> {
     use exr::prelude::*;
-    write_atomic(path, |tmp| {
-        if channels == 3 {
-            // The renderer's encoder: the same settings, block order fixed for reproducible bytes.
-            let rgb: Vec<[f32; 3]> = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-            let bytes = psc_render::image_io::encode_exr(size, size, &rgb).map_err(io_err)?;
-            return std::fs::write(tmp, bytes);
-        }
-        let channel = AnyChannel::new("Y", FlatSamples::F32(data.to_vec()));
-        let layer = Layer::new(
-            (size, size),
-            LayerAttributes::named("height"),
-            Encoding::SMALL_LOSSLESS, // scan lines in increasing order: reproducible bytes
-            AnyChannels::sort(SmallVec::from_vec(vec![channel])),
-        );
-        Image::from_layer(layer).write().to_file(tmp).map_err(io_err)
-    })
+    if channels == 3 {
+        // The renderer's encoder: the same settings, block order fixed for reproducible bytes.
+        let rgb: Vec<[f32; 3]> = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let bytes = psc_render::image_io::encode_exr(size, size, &rgb).map_err(io_err)?;
+        return std::fs::write(path, bytes);
+    }
+    let channel = AnyChannel::new("Y", FlatSamples::F32(data.to_vec()));
+    let layer = Layer::new(
+        (size, size),
+        LayerAttributes::named("height"),
+        Encoding::SMALL_LOSSLESS, // scan lines in increasing order: reproducible bytes
+        AnyChannels::sort(SmallVec::from_vec(vec![channel])),
+    );
+    Image::from_layer(layer).write().to_file(path).map_err(io_err)
 }
 
 /// Writes every map of `maps` into `dir` as `{stem}_albedo.png`, `{stem}_albedo.exr`,
 /// `{stem}_normal.png`, `{stem}_roughness.png`, `{stem}_height.exr` and, when the graph is
 /// not everywhere dielectric, `{stem}_metallic.png`. Returns the paths written.
+///
+/// The files are written directly: `dir` is meant to be a folder being staged
+/// (`psc_base::output::StagedDir`), which makes the whole set appear at once or not at all.
 pub fn write_maps(maps: &Maps, dir: &Path, stem: &str) -> io::Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir)?;
     let s = maps.size;
@@ -147,31 +140,31 @@ pub fn write_maps(maps: &Maps, dir: &Path, stem: &str) -> io::Result<Vec<PathBuf
 
     let albedo_srgb: Vec<u8> = maps.albedo.iter().map(|&x| to_u8(linear_to_srgb(x))).collect();
     let p = dir.join(format!("{stem}_albedo.png"));
-    write_png_rgb(&p, dims, &albedo_srgb)?;
+    save_png(&p, dims, &albedo_srgb, image::ColorType::Rgb8)?;
     written.push(p);
 
     let p = dir.join(format!("{stem}_albedo.exr"));
-    write_exr(&p, s, &maps.albedo, 3)?;
+    save_exr(&p, s, &maps.albedo, 3)?;
     written.push(p);
 
     let normal: Vec<u8> = maps.normal.iter().map(|&x| to_u8(x * 0.5 + 0.5)).collect();
     let p = dir.join(format!("{stem}_normal.png"));
-    write_png_rgb(&p, dims, &normal)?;
+    save_png(&p, dims, &normal, image::ColorType::Rgb8)?;
     written.push(p);
 
     let rough: Vec<u8> = maps.roughness.iter().map(|&x| to_u8(x)).collect();
     let p = dir.join(format!("{stem}_roughness.png"));
-    write_png_gray(&p, dims, &rough)?;
+    save_png(&p, dims, &rough, image::ColorType::L8)?;
     written.push(p);
 
     let p = dir.join(format!("{stem}_height.exr"));
-    write_exr(&p, s, &maps.height, 1)?;
+    save_exr(&p, s, &maps.height, 1)?;
     written.push(p);
 
     if maps.metallic.iter().any(|&m| m != 0.0) {
         let metal: Vec<u8> = maps.metallic.iter().map(|&x| to_u8(x)).collect();
         let p = dir.join(format!("{stem}_metallic.png"));
-        write_png_gray(&p, dims, &metal)?;
+        save_png(&p, dims, &metal, image::ColorType::L8)?;
         written.push(p);
     }
     Ok(written)
