@@ -161,7 +161,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
 
     if args.gbuffer {
         let dir = need_out()?;
-        let gb = renderer.gbuffer(&camera);
+        let gb = renderer.gbuffer(&camera)?;
         gb.write_folder(&dir, replace)?;
         eprintln!("wrote G-buffers ({width}x{height}) to {}", dir.display());
         return Ok(ExitCode::SUCCESS);
