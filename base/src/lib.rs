@@ -3,13 +3,15 @@
 //!
 //! Owns: deterministic random numbers ([`SplitMix64`], [`mix64`]); outputs that appear whole or
 //! not at all ([`output`]: atomic file writes, staged output folders, removal of temporaries on
-//! error, drop, SIGINT and SIGTERM).
+//! error, drop, SIGINT and SIGTERM); resource limits ([`limits`]: pixels, texels, samples,
+//! threads, variants and a memory budget, checked before allocating).
 //!
 //! Must never: depend on another photoscene crate or on anything but `std` and `ctrlc` (the
 //! signal handler of [`output`]); know about graphs, kernels, scenes or images.
 
 #![forbid(unsafe_code)]
 
+pub mod limits;
 pub mod output;
 
 /// SplitMix64 finaliser: a good 64-bit mixing function.

@@ -182,7 +182,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
 
     if args.gbuffer {
         let dir = folder()?;
-        let gb = renderer.gbuffer(&camera);
+        let gb = renderer.gbuffer(&camera)?;
         gb.write_folder(&dir, replace)?;
         eprintln!("wrote G-buffers ({width}x{height}) to {}", dir.display());
         return Ok(ExitCode::SUCCESS);

@@ -39,7 +39,7 @@ fn main() {
         LightRadiances::resolve(&scene, &psc_render::LightsSource::Truth, &mut warnings).expect("radiances");
     let r = Renderer::new(&scene, materials, &radiances).expect("renderer");
     let load = (t0.elapsed().as_secs_f64(), cpu_seconds() - c0);
-    let cam = rescale(&scene.views[0].camera, w, h);
+    let cam = rescale(&scene.views[0].camera, w, h).expect("camera");
 
     let c1 = cpu_seconds();
     let (primary, p_wall) = r.primary_ray_benchmark(&cam, 16, threads).expect("bench");

@@ -51,6 +51,9 @@ impl Camera {
         if width == 0 || height == 0 {
             return err("zero image size");
         }
+        // Bytes a pixel of the smallest render needs (one light slot, the image, its encoding);
+        // renders, G-buffers and grids check their own, larger needs.
+        psc_base::limits::check_image(&format!("{context}: image"), width as u64, height as u64, 36)?;
         if !(spec.fov_y_deg > 0.0 && spec.fov_y_deg < 179.0) {
             return err(&format!("fov_y_deg must be in (0, 179), got {}", spec.fov_y_deg));
         }

@@ -47,6 +47,10 @@ struct Px {
     p: [f32; 3],
 }
 
+/// Memory a G-buffer needs per pixel: the traced pixel (88 bytes), the output arrays (80) and
+/// one EXR being encoded (~24).
+const BYTES_PER_PIXEL: u64 = 192;
+
 /// G-buffer of `camera` at its resolution. `materials` (one per part) adds normal maps to the
 /// shading normal; without them the shading normal is the interpolated mesh normal.
 pub fn render_gbuffer(
@@ -55,8 +59,9 @@ pub fn render_gbuffer(
     part_names: &[String],
     light_names: &[String],
     materials: Option<&[MaterialBinding]>,
-) -> GBuffer {
+) -> Result<GBuffer, RenderError> {
     let (w, h) = (camera.width, camera.height);
+    psc_base::limits::check_image("G-buffer", w as u64, h as u64, BYTES_PER_PIXEL)?;
     let n_parts = part_names.len() as u32;
     let px: Vec<Px> = (0..w * h)
         .into_par_iter()
@@ -96,7 +101,7 @@ pub fn render_gbuffer(
         .collect();
     let mut id_names: Vec<String> = part_names.to_vec();
     id_names.extend(light_names.iter().map(|n| format!("light:{n}")));
-    GBuffer {
+    Ok(GBuffer {
         width: w,
         height: h,
         part_id: px.iter().map(|p| p.id).collect(),
@@ -108,7 +113,7 @@ pub fn render_gbuffer(
         depth: px.iter().map(|p| p.depth).collect(),
         position: px.iter().map(|p| p.p).collect(),
         id_names,
-    }
+    })
 }
 
 #[derive(Serialize)]

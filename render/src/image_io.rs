@@ -37,11 +37,28 @@ fn is_exr(path: &Path) -> bool {
     path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("exr"))
 }
 
-/// Width and height of a PNG/JPEG/EXR without decoding its pixels.
+/// Memory a full decode needs per pixel: the decoder's buffer (up to 16-bit RGBA, 8 bytes), the
+/// float conversion (12) and the result (12).
+const DECODE_BYTES_PER_PIXEL: u64 = 32;
+
+/// Width and height of a PNG/JPEG/EXR without decoding its pixels; refused (naming the file)
+/// when over the pixel limit (`psc_base::limits::MAX_PIXELS`), whatever the file's size.
 pub fn dimensions(path: &Path) -> Result<(usize, usize), RenderError> {
-    if !path.is_file() {
-        return Err(RenderError::io(path, "file not found"));
-    }
+    let (w, h) = header_dimensions(path)?;
+    psc_base::limits::check_image(&format!("{}: image", path.display()), w as u64, h as u64, 0)?;
+    Ok((w, h))
+}
+
+/// Check the header of an image about to be decoded against the pixel limit and its decoded
+/// size against the memory budget.
+fn check_decodable(path: &Path, bytes_per_pixel: u64) -> Result<(), RenderError> {
+    let (w, h) = header_dimensions(path)?;
+    psc_base::limits::check_image(&format!("{}: image", path.display()), w as u64, h as u64, bytes_per_pixel)?;
+    Ok(())
+}
+
+fn header_dimensions(path: &Path) -> Result<(usize, usize), RenderError> {
+    crate::json::check_file(path, "an image")?;
     if is_exr(path) {
         let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| RenderError::image(path, e))?;
         let header = meta.headers.first().ok_or_else(|| RenderError::image(path, "EXR without layers"))?;
@@ -55,9 +72,7 @@ pub fn dimensions(path: &Path) -> Result<(usize, usize), RenderError> {
 /// Read an RGB image as linear floats. PNG/JPEG values are decoded from sRGB when `srgb`
 /// (else divided by the format's maximum); EXR is taken as linear.
 pub fn read_rgb(path: &Path, srgb: bool) -> Result<RgbImage, RenderError> {
-    if !path.is_file() {
-        return Err(RenderError::io(path, "file not found"));
-    }
+    check_decodable(path, DECODE_BYTES_PER_PIXEL)?;
     if is_exr(path) {
         let img = exr::prelude::read_first_rgba_layer_from_file(
             path,
@@ -84,9 +99,7 @@ pub fn read_rgb(path: &Path, srgb: bool) -> Result<RgbImage, RenderError> {
 
 /// Read a part-label image: 8- or 16-bit grayscale PNG, values returned as stored.
 pub fn read_labels(path: &Path) -> Result<(usize, usize, Vec<u16>), RenderError> {
-    if !path.is_file() {
-        return Err(RenderError::io(path, "file not found"));
-    }
+    check_decodable(path, 4)?;
     let dynimg = image::open(path).map_err(|e| RenderError::image(path, e))?;
     let (w, h) = (dynimg.width() as usize, dynimg.height() as usize);
     let data = match dynimg {

@@ -58,6 +58,33 @@ pub struct PathConfig {
 }
 
 impl RenderOptions {
+    /// Refuse options that cannot give a meaningful image or that exceed the resource limits
+    /// (`psc_base::limits`), before anything is allocated; `slots` = light slots of the scene.
+    pub fn check(&self, slots: usize) -> Result<(), RenderError> {
+        use psc_base::limits;
+        if self.width == 0 || self.height == 0 {
+            return Err(RenderError::Invalid(format!("image size {}x{} must be positive", self.width, self.height)));
+        }
+        if self.spp == 0 {
+            return Err(RenderError::Invalid("samples per pixel must be at least 1".into()));
+        }
+        if self.max_depth == 0 {
+            return Err(RenderError::Invalid(
+                "max_depth 0 renders nothing (Mitsuba convention: 1 = directly visible emitters, 2 = direct light, \
+                 6 = the default)"
+                    .into(),
+            ));
+        }
+        limits::check_count("samples per pixel", self.spp as u64, limits::MAX_SPP, "samples")?;
+        if let Some(t) = self.threads {
+            limits::check_threads(t as u64)?;
+        }
+        // Per pixel: the slot accumulators, the combined image, and the per-light copies.
+        let per_pixel = 12 * (slots as u64 + 1 + if self.per_light { slots as u64 } else { 0 });
+        limits::check_image("render", self.width as u64, self.height as u64, per_pixel)?;
+        Ok(())
+    }
+
     pub fn path_config(&self) -> PathConfig {
         PathConfig {
             max_depth: self.max_depth,
@@ -313,7 +340,7 @@ impl Renderer {
     }
 
     /// The G-buffer of `camera` at its resolution, with the materials' normal maps.
-    pub fn gbuffer(&self, camera: &Camera) -> crate::GBuffer {
+    pub fn gbuffer(&self, camera: &Camera) -> Result<crate::GBuffer, RenderError> {
         crate::gbuffer::render_gbuffer(
             &self.geometry,
             camera,
@@ -466,14 +493,12 @@ impl Renderer {
 
     /// Path-trace an image from `camera` (its resolution is overridden by the options' size).
     pub fn render(&self, camera: &Camera, opts: &RenderOptions) -> Result<RenderOutput, RenderError> {
-        if opts.width == 0 || opts.height == 0 || opts.spp == 0 {
-            return Err(RenderError::Invalid("size and spp must be positive".into()));
-        }
+        let (w, h, ns) = (opts.width, opts.height, self.n_slots());
+        opts.check(ns)?;
         let mut cam = camera.clone();
         if (cam.width, cam.height) != (opts.width, opts.height) {
-            cam = rescale(camera, opts.width, opts.height);
+            cam = rescale(camera, opts.width, opts.height)?;
         }
-        let (w, h, ns) = (opts.width, opts.height, self.n_slots());
         let start = Instant::now();
         let rays = AtomicU64::new(0);
         let bar = progress_bar(opts.progress, h as u64, "render");
@@ -583,8 +608,9 @@ impl Renderer {
     }
 }
 
-/// The same camera at another resolution (same vertical field of view).
-pub fn rescale(camera: &Camera, width: usize, height: usize) -> Camera {
+/// The same camera at another resolution (same vertical field of view); fails only for a size
+/// that is zero or over the pixel limit.
+pub fn rescale(camera: &Camera, width: usize, height: usize) -> Result<Camera, RenderError> {
     let fov = 2.0 * camera_tan_half_y(camera).atan().to_degrees();
     let spec = crate::camera::CameraSpec {
         position: camera.position.to_array(),
@@ -592,7 +618,7 @@ pub fn rescale(camera: &Camera, width: usize, height: usize) -> Camera {
         up: camera.up.to_array(),
         fov_y_deg: fov,
     };
-    Camera::new(&spec, width, height, "camera").expect("a valid camera stays valid at another size")
+    Camera::new(&spec, width, height, "camera")
 }
 
 fn camera_tan_half_y(c: &Camera) -> f32 {
@@ -605,6 +631,7 @@ pub(crate) fn run_in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T
     match threads {
         None => Ok(f()),
         Some(n) => {
+            psc_base::limits::check_threads(n as u64)?;
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(n.max(1))
                 .build()

@@ -114,12 +114,31 @@ struct Cell {
 
 /// Estimate the grid for `camera` (at its resolution).
 pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions) -> Result<LightGrid, RenderError> {
+    use psc_base::limits;
     if opts.stride == 0 || opts.samples_per_bin == 0 {
         return Err(RenderError::Invalid("light grid stride and samples per bin must be positive".into()));
     }
+    if opts.max_depth < 2 {
+        return Err(RenderError::Invalid(format!(
+            "a light grid needs max_depth of at least 2 (incoming light at a surface is one bounce from the \
+             camera), got {}",
+            opts.max_depth
+        )));
+    }
+    limits::check_count("light-grid paths per bin", opts.samples_per_bin as u64, limits::MAX_GRID_SAMPLES, "paths")?;
     let (w, h) = (camera.width, camera.height);
     let (gw, gh) = (w.div_ceil(opts.stride), h.div_ceil(opts.stride));
     let ns = r.n_slots();
+    // Per cell: the slot values of every bin, the combined grid and the per-light copies, plus
+    // the cell's geometry.
+    let per_cell = (BINS * 12) as u64 * (ns as u64 + 1 + if opts.per_light { ns as u64 } else { 0 }) + 64;
+    limits::check_elements(
+        format!("light grid of {gw}x{gh} cells (stride {})", opts.stride),
+        &[gw as u64, gh as u64],
+        limits::MAX_PIXELS,
+        "cells",
+        per_cell,
+    )?;
     let n_parts = r.part_names().len() as u32;
     let bar = progress_bar(opts.progress, (gw * gh) as u64, "light grid");
     let cfg = PathConfig {

@@ -114,6 +114,14 @@ fn require_file(root: &Path, rel: &str, what: &str) -> Result<PathBuf, RenderErr
     }
 }
 
+impl View {
+    /// Every pixel of the photo, linear RGB (decoded from sRGB for PNG/JPEG); errors name the
+    /// file.
+    pub fn read_photo(&self) -> Result<image_io::RgbImage, RenderError> {
+        image_io::read_rgb(&self.image, true)
+    }
+}
+
 impl Scene {
     /// Load `dir/scene.json` and everything it names.
     pub fn load(dir: &Path) -> Result<Scene, RenderError> {
@@ -240,6 +248,9 @@ impl Scene {
 fn load_view(dir: &Path, v: &ViewSpec, mesh: &Mesh, warnings: &mut Vec<String>) -> Result<View, RenderError> {
     let image = require_file(dir, &v.image, &format!("photo of view '{}'", v.name))?;
     let (width, height) = image_io::dimensions(&image)?;
+    // Decode every pixel once: a truncated or corrupt photo is an error naming the file now,
+    // not when the fit reads it.
+    image_io::read_rgb(&image, true)?;
     let camera = Camera::new(&v.camera, width, height, &format!("view '{}'", v.name))?;
     let mut part_labels = BTreeMap::new();
     for (key, name) in &v.part_labels {

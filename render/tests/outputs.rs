@@ -26,7 +26,7 @@ fn folder_outputs_are_refused_when_present_and_replaced_whole_when_asked() {
     let out = dir.join("out");
     std::fs::create_dir(&out).unwrap();
 
-    let gb = r.gbuffer(cam);
+    let gb = r.gbuffer(cam).unwrap();
     let e = gb.write_folder(&out.join("gb"), Replace::No);
     assert!(e.is_ok());
     let e = gb.write_folder(&out.join("gb"), Replace::No).unwrap_err().to_string();
