@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
+use psc_base::limits;
 use psc_base::output::{Replace, StagedDir};
 use psc_base::SplitMix64;
 use psc_runtime::bake;
@@ -23,13 +24,13 @@ pub struct Args {
     /// Which graph of the file, when it defines several.
     #[arg(long)]
     pub name: Option<String>,
-    /// Map size in texels (square), at most 16384.
-    #[arg(long, default_value_t = 1024, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=16384))]
+    /// Map size in texels (square), at most 8192.
+    #[arg(long, default_value_t = 1024, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub size: usize,
     /// Parameter values: a JSON object of name → number, [r, g, b] (linear) or {"srgb": [r, g, b]}.
     #[arg(long)]
     pub params: Option<PathBuf>,
-    /// Also bake K random-parameter variants (each with its parameters as JSON).
+    /// Also bake K random-parameter variants (each with its parameters as JSON), at most 10 000.
     #[arg(long, default_value_t = 0)]
     pub random: usize,
     /// Seed of the random variants.
@@ -47,6 +48,9 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<ExitCode, Error> {
+    checks::bake_size("--size", args.size)?;
+    limits::check_count("random variants", args.random as u64, limits::MAX_VARIANTS, "variants")
+        .map_err(|e| checks::over_limit("--random", e))?;
     let replace = if args.force { Replace::Yes } else { Replace::No };
     checks::new_folder("--out", &args.out, replace)?;
     // Refused at once when --out exists (without --force), before compiling anything.

@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use psc_base::limits::{self, LimitError};
 use psc_base::output::{OutputError, Replace};
 
 use crate::{Error, Failure, Usage};
@@ -41,6 +42,31 @@ pub fn new_folder(option: &str, path: &Path, replace: Replace) -> Result<(), Err
     Ok(())
 }
 
+/// An option whose value is over a documented limit (`psc_base::limits`): a usage error that
+/// names the option and says the limit and the memory the request would need.
+pub fn over_limit(option: &str, e: LimitError) -> Usage {
+    Usage(format!("{option}: {e}"))
+}
+
+/// A bake (or contact-sheet sample) of `size`×`size` texels: the texel limit and memory (the
+/// nine channel columns, the uv grid and the maps, about 100 bytes a texel).
+pub fn bake_size(option: &str, size: usize) -> Result<(), Usage> {
+    let size = size as u64;
+    limits::check_elements(format!("bake of {size}x{size} texels"), &[size, size], limits::MAX_TEXELS, "texels", 100)
+        .map(drop)
+        .map_err(|e| over_limit(option, e))
+}
+
+/// A worker-thread count for clap: at least 1, at most `psc_base::limits::MAX_THREADS`.
+pub fn parse_threads(s: &str) -> Result<usize, String> {
+    let n: u64 = s.trim().parse().map_err(|_| format!("expected a number of threads, got '{s}'"))?;
+    if n == 0 {
+        return Err("expected at least 1 thread, got 0".into());
+    }
+    limits::check_threads(n).map_err(|e| e.to_string())?;
+    Ok(n as usize)
+}
+
 /// `WxH` with positive integers, for clap's `value_parser`.
 pub fn parse_size(s: &str) -> Result<(usize, usize), String> {
     let bad = || format!("expected WIDTHxHEIGHT with positive integers, e.g. 320x240; got '{s}'");
@@ -50,7 +76,28 @@ pub fn parse_size(s: &str) -> Result<(usize, usize), String> {
     if w == 0 || h == 0 {
         return Err(bad());
     }
+    limits::check_image("image", w as u64, h as u64, 0).map_err(|e| e.to_string())?;
     Ok((w, h))
+}
+
+/// Samples per pixel for clap: at least 1, at most `psc_base::limits::MAX_SPP`.
+pub fn parse_spp(s: &str) -> Result<u32, String> {
+    let n: u64 = s.trim().parse().map_err(|_| format!("expected a number of samples, got '{s}'"))?;
+    if n == 0 {
+        return Err("expected at least 1 sample per pixel, got 0".into());
+    }
+    limits::check_count("samples per pixel", n, limits::MAX_SPP, "samples").map_err(|e| e.to_string())?;
+    Ok(n as u32)
+}
+
+/// Light-grid paths per bin for clap: at least 1, at most `psc_base::limits::MAX_GRID_SAMPLES`.
+pub fn parse_grid_samples(s: &str) -> Result<u32, String> {
+    let n: u64 = s.trim().parse().map_err(|_| format!("expected a number of paths, got '{s}'"))?;
+    if n == 0 {
+        return Err("expected at least 1 path per bin, got 0".into());
+    }
+    limits::check_count("paths per bin", n, limits::MAX_GRID_SAMPLES, "paths").map_err(|e| e.to_string())?;
+    Ok(n as u32)
 }
 
 #[cfg(test)]
@@ -65,6 +112,19 @@ mod tests {
             let e = parse_size(bad).unwrap_err();
             assert!(e.contains("expected WIDTHxHEIGHT") && e.contains(bad), "{bad}: {e}");
         }
+        let e = parse_size("100000x100000").unwrap_err();
+        assert!(e.contains("the limit is 67,108,864 pixels"), "{e}");
+        assert!(parse_size("4294967295x4294967295").unwrap_err().contains("the limit is"));
+        assert_eq!(parse_spp("64"), Ok(64));
+        assert!(parse_spp("100000000").unwrap_err().contains("the limit is 65,536 samples"));
+    }
+
+    #[test]
+    fn thread_counts_are_bounded_by_the_documented_limit() {
+        assert_eq!(parse_threads("2"), Ok(2));
+        let e = parse_threads("100000").unwrap_err();
+        assert!(e.contains("100,000 threads requested") && e.contains("the limit is 256"), "{e}");
+        assert!(parse_threads("0").is_err() && parse_threads("many").is_err());
     }
 
     #[test]

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use psc_base::SplitMix64;
+use psc_base::{limits, SplitMix64};
 use psc_runtime::bake;
 use psc_runtime::library::{default_library_root, Library};
 use psc_runtime::params::ParamSpace;
@@ -49,6 +49,10 @@ pub struct Args {
 pub fn run(args: Args) -> Result<ExitCode, Error> {
     if let Some(sheet) = &args.sheet {
         checks::image_path("--sheet", sheet, &["png"])?;
+        checks::bake_size("--size", args.size)?;
+    }
+    if let Some(size) = args.bench {
+        checks::bake_size("--bench", size)?;
     }
     let root = args.lib.clone().unwrap_or_else(default_library_root);
     let started = Instant::now();
@@ -75,6 +79,9 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
             categories.join(", ")
         ))
         .into());
+    }
+    if args.sheet.is_some() {
+        sheet_fits(&args, materials.len())?;
     }
     println!(
         "{} graphs from {} (front end {:.2} s, JIT {:.2} s, total {:.2} s)",
@@ -141,6 +148,26 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
         println!("contact sheet: {} ({} samples)", path.display(), cells.len());
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The contact sheet of `graphs` graphs fits the limits: every sample's maps are held until the
+/// sheet is composed (about 40 bytes a texel), and the sheet is one image (3 bytes a pixel; each
+/// sample takes its size plus a margin and a label strip, about 8 and 24 pixels).
+fn sheet_fits(args: &Args, graphs: usize) -> Result<(), Usage> {
+    let cells = (graphs as u64).saturating_mul(args.variants as u64 + 1);
+    let size = args.size as u64;
+    limits::check_elements(
+        format!("contact sheet of {cells} samples of {size}x{size}"),
+        &[cells, size, size],
+        u64::MAX,
+        "texels",
+        40,
+    )
+    .map_err(|e| checks::over_limit("--size/--variants", e))?;
+    let per_row = (args.per_row as u64).saturating_mul(args.variants as u64 + 1);
+    let rows = cells.div_ceil(per_row.max(1));
+    let (w, h) = (per_row.saturating_mul(size + 8), rows.saturating_mul(size + 24));
+    limits::check_image("contact sheet", w, h, 3).map(drop).map_err(|e| checks::over_limit("--sheet", e))
 }
 
 /// A stable per-graph seed offset, so each graph's variants do not depend on the others.

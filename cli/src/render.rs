@@ -41,8 +41,8 @@ pub struct Args {
     /// Camera JSON: {"position", "look_at", "up", "fov_y_deg"} or {"camera": {...}}, optional width/height.
     #[arg(long)]
     camera: Option<PathBuf>,
-    /// Samples per pixel.
-    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..))]
+    /// Samples per pixel (at most 65 536).
+    #[arg(long, default_value_t = 64, value_parser = checks::parse_spp)]
     spp: u32,
     /// Image size WxH (default: the view's photo, or the camera file's size).
     #[arg(long, value_parser = checks::parse_size)]
@@ -78,8 +78,8 @@ pub struct Args {
     geometry: Geometry,
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Worker threads (default: all cores).
-    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    /// Worker threads (default: all cores; at most 256).
+    #[arg(long, value_parser = checks::parse_threads)]
     threads: Option<usize>,
     /// Path depth, Mitsuba convention (1 = emitters only, 2 = direct light), at most 1024.
     #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=1024))]
@@ -88,7 +88,7 @@ pub struct Args {
     #[arg(long, default_value_t = 8, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     grid_stride: usize,
     /// Light grid: paths per hemisphere bin.
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 4, value_parser = checks::parse_grid_samples)]
     grid_samples: u32,
     /// Print throughput: primary rays/s, path rays/s and the render time.
     #[arg(long)]

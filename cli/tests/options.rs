@@ -85,6 +85,69 @@ fn render_options_that_make_no_sense_are_usage_errors() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Requests past the documented limits (`psc_base::limits`) are refused before anything is
+/// allocated, saying the limit and the memory the request would need.
+#[test]
+fn requests_past_the_limits_are_refused_at_once() {
+    let dir = scratch("limits");
+    let d = dir.to_str().unwrap();
+    let png = format!("{d}/x.png");
+    let cam = format!("{d}/cam.json");
+    std::fs::write(
+        &cam,
+        r#"{"position": [2, 1.5, 4], "look_at": [2, 1, 0], "fov_y_deg": 60, "width": 100000, "height": 100000}"#,
+    )
+    .unwrap();
+    let room = "examples/room";
+    let cases = vec![
+        (
+            v(&["render", room, "--threads", "100000", "--out", &png]),
+            2,
+            vec!["--threads", "100,000 threads requested; the limit is 256"],
+        ),
+        (v(&["render", room, "--size", "100000x100000", "--out", &png]), 2, vec!["the limit is 67,108,864 pixels"]),
+        (
+            v(&["render", room, "--size", "4294967295x4294967295", "--gbuffer", "--out", &format!("{d}/g")]),
+            2,
+            vec!["the limit is 67,108,864 pixels"],
+        ),
+        (v(&["render", room, "--spp", "100000000", "--out", &png]), 2, vec!["the limit is 65,536 samples"]),
+        (
+            v(&["render", room, "--light-grid", "--grid-samples", "100000", "--out", &format!("{d}/g")]),
+            2,
+            vec!["the limit is 4,096 paths"],
+        ),
+        (
+            v(&["render", room, "--camera", &cam, "--out", &png]),
+            1,
+            vec!["100000x100000", "the limit is 67,108,864 pixels", "GiB of memory"],
+        ),
+        (
+            v(&["library", "--sheet", &format!("{d}/s.png"), "--size", "1000000", "--only", "plaster"]),
+            2,
+            vec!["--size: bake of 1000000x1000000 texels", "the limit is 67,108,864 texels"],
+        ),
+        (
+            v(&["library", "--sheet", &format!("{d}/s.png"), "--variants", "100000"]),
+            2,
+            vec!["would need about", "the limit is 16.0 GiB"],
+        ),
+        (v(&["library", "--bench", "1000000"]), 2, vec!["--bench:", "the limit is 67,108,864 texels"]),
+        (
+            v(&["bake", "oak_planks", "--size", "8", "--random", "100000000", "--out", &format!("{d}/b")]),
+            2,
+            vec!["--random:", "the limit is 10,000 variants"],
+        ),
+        (
+            v(&["bake", "knit", "--size", "9000", "--out", &format!("{d}/b")]),
+            2,
+            vec!["--size:", "the limit is 67,108,864 texels"],
+        ),
+    ];
+    check(&dir, &cases);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn library_and_bake_options_that_make_no_sense_are_usage_errors() {
     let dir = scratch("library");
