@@ -282,12 +282,8 @@ impl Assignment {
         };
         let mut out = Assignment::default();
         for (name, v) in parts {
-            let part = PartMaterial::from_json(v).map_err(|(field, problem)| AssignError {
-                file: None,
-                part: Some(name.clone()),
-                field,
-                problem,
-            })?;
+            let part = PartMaterial::from_json(v)
+                .map_err(|(field, problem)| AssignError::new(Some(name.clone()), field, problem))?;
             out.parts.insert(name.clone(), part);
         }
         Ok(out)
@@ -316,7 +312,7 @@ impl Assignment {
     ) -> Result<(), AssignError> {
         let mut new = Vec::with_capacity(self.parts.len());
         for (part, m) in &self.parts {
-            let at = |problem| AssignError { file: None, part: Some(part.clone()), field: None, problem };
+            let at = |problem| AssignError::new(Some(part.clone()), None, problem);
             let index = part_names
                 .iter()
                 .position(|p| p == part)
@@ -367,16 +363,17 @@ pub struct AssignError {
     pub file: Option<PathBuf>,
     pub part: Option<String>,
     pub field: Option<&'static str>,
-    pub problem: AssignProblem,
+    /// Boxed: errors stay small for the `Result`s that carry them.
+    pub problem: Box<AssignProblem>,
 }
 
 impl AssignError {
     fn new(part: Option<String>, field: Option<&'static str>, problem: AssignProblem) -> AssignError {
-        AssignError { file: None, part, field, problem }
+        AssignError { file: None, part, field, problem: Box::new(problem) }
     }
 
     fn file(path: &Path, problem: AssignProblem) -> AssignError {
-        AssignError { file: Some(path.to_path_buf()), part: None, field: None, problem }
+        AssignError { file: Some(path.to_path_buf()), part: None, field: None, problem: Box::new(problem) }
     }
 
     /// The same error, located in `path`.
@@ -388,7 +385,7 @@ impl AssignError {
 
 impl fmt::Display for AssignError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if let AssignProblem::Json(e) = &self.problem {
+        if let AssignProblem::Json(e) = &*self.problem {
             return e.fmt(f); // already names the file
         }
         if let Some(file) = &self.file {
@@ -400,7 +397,7 @@ impl fmt::Display for AssignError {
         if let Some(field) = self.field {
             write!(f, "`{field}`: ")?;
         }
-        match &self.problem {
+        match &*self.problem {
             AssignProblem::Json(_) => Ok(()),
             AssignProblem::UnknownField { field, known } => {
                 write!(f, "unknown field `{field}` (expected one of: {})", known.join(", "))

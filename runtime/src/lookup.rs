@@ -67,7 +67,7 @@ pub fn find_graph(spec: &str, name: Option<&str>, lib: Option<&Path>) -> Result<
         if !path.is_file() {
             return Err(LookupError::NoSuchFile(path));
         }
-        let graphs = compile(&[path.clone()], &Options { lib_root: lib.map(Path::to_path_buf) })?;
+        let graphs = compile(std::slice::from_ref(&path), &Options { lib_root: lib.map(Path::to_path_buf) })?;
         return match name {
             Some(n) => pick(graphs, n, &path.display().to_string()),
             None => graphs.into_iter().next().ok_or(LookupError::Empty(path)),
