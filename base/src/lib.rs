@@ -4,7 +4,8 @@
 //! Owns: deterministic random numbers ([`SplitMix64`], [`mix64`]); outputs that appear whole or
 //! not at all ([`output`]: atomic file writes, staged output folders, removal of temporaries on
 //! error, drop, SIGINT and SIGTERM); resource limits ([`limits`]: pixels, texels, samples,
-//! threads, variants and a memory budget, checked before allocating).
+//! threads, variants and a memory budget, checked before allocating); progress reporting that
+//! any crate can call and only the command line draws ([`progress`]).
 //!
 //! Must never: depend on another photoscene crate or on anything but `std` and `ctrlc` (the
 //! signal handler of [`output`]); know about graphs, kernels, scenes or images.
@@ -13,6 +14,7 @@
 
 pub mod limits;
 pub mod output;
+pub mod progress;
 
 /// SplitMix64 finaliser: a good 64-bit mixing function.
 #[inline]

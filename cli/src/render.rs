@@ -9,7 +9,8 @@ use std::process::ExitCode;
 
 use psc_render::camera::{load_camera_file, Camera};
 use psc_render::{
-    compute_light_grid, image_io, truth, LightGridOptions, LightRadiances, LightsSource, RenderOptions, Renderer, Scene,
+    compute_light_grid_with_progress, image_io, truth, LightGridOptions, LightRadiances, LightsSource, RenderOptions,
+    Renderer, Scene,
 };
 
 use crate::Failure;
@@ -112,12 +113,45 @@ fn parse_size(s: &str) -> Result<(usize, usize), String> {
     Ok((w, h))
 }
 
+/// A minimal terminal drawer for the library's progress reports (the platform helper replaces
+/// it with the CLI's own bar and line-log drawer).
+struct Bar {
+    show: bool,
+    bar: std::sync::Mutex<Option<indicatif::ProgressBar>>,
+}
+
+impl psc_base::progress::Progress for Bar {
+    fn start(&self, stage: &str, total: Option<u64>, unit: &str) {
+        if !self.show {
+            return;
+        }
+        let bar = indicatif::ProgressBar::with_draw_target(total, indicatif::ProgressDrawTarget::stderr());
+        let template = format!("{{msg}} [{{bar:40}}] {{pos}}/{{len}} {unit}, {{elapsed}} (eta {{eta}})");
+        if let Ok(style) = indicatif::ProgressStyle::with_template(&template) {
+            bar.set_style(style.progress_chars("=> "));
+        }
+        bar.set_message(stage.to_string());
+        *self.bar.lock().unwrap_or_else(|p| p.into_inner()) = Some(bar);
+    }
+    fn advance(&self, n: u64) {
+        if let Some(b) = self.bar.lock().unwrap_or_else(|p| p.into_inner()).as_ref() {
+            b.inc(n);
+        }
+    }
+    fn finish(&self) {
+        if let Some(b) = self.bar.lock().unwrap_or_else(|p| p.into_inner()).take() {
+            b.finish_and_clear();
+        }
+    }
+}
+
 pub fn run(args: Args) -> Result<ExitCode, Failure> {
+    let bar = Bar { show: !args.quiet && !args.bench, bar: Default::default() };
     let mesh_override = match args.geometry {
         Geometry::Model => None,
         Geometry::Truth => Some(truth::truth_mesh(&args.scene).ok_or("no truth/scene_true.obj next to the scene")?),
     };
-    let scene = Scene::load_with_mesh(&args.scene, mesh_override.as_deref())?;
+    let scene = Scene::load_with_progress(&args.scene, mesh_override.as_deref(), &bar)?;
     let mut warnings = scene.warnings.clone();
 
     // Camera and size.
@@ -154,7 +188,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     if !args.quiet {
         eprintln!("lights: {}", radiances.source);
     }
-    let renderer = Renderer::new(&scene, materials, &radiances)?;
+    let renderer = Renderer::new_with_progress(&scene, materials, &radiances, &bar)?;
     let out = args.out.clone();
     let replace = if args.force { psc_base::output::Replace::Yes } else { psc_base::output::Replace::No };
     let need_out = || out.clone().ok_or_else(|| Failure("--out is required".into()));
@@ -174,13 +208,12 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
             seed: args.seed,
             max_depth: args.max_depth,
             threads: args.threads,
-            progress: !args.quiet,
             per_light: args.per_light,
             diffuse_only: args.diffuse_only,
             ..Default::default()
         };
         let start = std::time::Instant::now();
-        let grid = compute_light_grid(&renderer, &camera, &opts)?;
+        let grid = compute_light_grid_with_progress(&renderer, &camera, &opts, &bar)?;
         grid.write_folder(&dir, replace)?;
         eprintln!(
             "wrote a {}x{} light grid (8x16 bins) to {} in {:.2} s",
@@ -199,7 +232,6 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         seed: args.seed,
         max_depth: args.max_depth,
         threads: args.threads,
-        progress: !args.quiet && !args.bench,
         per_light: args.per_light,
         diffuse_only: args.diffuse_only,
         ..Default::default()
@@ -232,7 +264,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         }
         return Ok(ExitCode::SUCCESS);
     }
-    let result = renderer.render(&camera, &opts)?;
+    let result = renderer.render_with_progress(&camera, &opts, &bar)?;
     if args.per_light {
         let dir = need_out()?;
         result.write_per_light_folder(&dir, replace)?;
