@@ -56,25 +56,8 @@ pub fn bake(eval: &Evaluator, params: &[f32], size: usize) -> Result<Maps, Strin
     maps_from_channels(size, &ch)
 }
 
-/// Linear to sRGB transfer, in [0,1].
-pub fn linear_to_srgb(x: f32) -> f32 {
-    let x = x.clamp(0.0, 1.0);
-    if x <= 0.003_130_8 {
-        12.92 * x
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// sRGB to linear transfer, in [0,1].
-pub fn srgb_to_linear(x: f32) -> f32 {
-    let x = x.clamp(0.0, 1.0);
-    if x <= 0.040_45 {
-        x / 12.92
-    } else {
-        ((x + 0.055) / 1.055).powf(2.4)
-    }
-}
+/// The workspace's one sRGB transfer (clamped to [0, 1], NaN to 0).
+pub use psc_base::color::{linear_to_srgb, srgb_to_linear};
 
 fn to_u8(x: f32) -> u8 {
     if x.is_nan() {
@@ -179,23 +162,8 @@ pub fn write_maps(maps: &Maps, dir: &Path, stem: &str) -> io::Result<Vec<PathBuf
     Ok(written)
 }
 
-/// A small deterministic generator (SplitMix64) for random parameter variants.
-#[derive(Clone, Debug)]
-pub struct Rng(pub u64);
-
-impl Rng {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    pub fn next_f32(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 * (1.0 / 16_777_216.0)
-    }
-}
+/// The deterministic generator for random parameter variants: the workspace's SplitMix64.
+pub use psc_base::SplitMix64 as Rng;
 
 /// A random parameter vector: continuous parameters uniform over their range, discrete ones
 /// uniform over their integers, colours the default scaled by 0.7–1.3 in sRGB plus up to ±0.08
