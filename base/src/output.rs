@@ -132,14 +132,33 @@ pub fn remove_live_temporaries() {
 }
 
 fn remove_any(path: &Path) {
-    for _ in 0..5 {
-        let r = match std::fs::symlink_metadata(path) {
-            Ok(m) if m.is_dir() => std::fs::remove_dir_all(path),
-            Ok(_) => std::fs::remove_file(path),
-            Err(_) => return,
-        };
-        if r.is_ok() {
-            return;
+    let Ok(meta) = std::fs::symlink_metadata(path) else { return };
+    if !meta.is_dir() {
+        let _ = std::fs::remove_file(path);
+        return;
+    }
+    // A writer may still be creating files in the folder. Renaming it first makes its path
+    // vanish at once (new files fail to be created), so the removal below cannot race with new
+    // entries; the new name is a temporary name of the same destination, so if this process
+    // dies now the next run still recognises it.
+    let target = match (path.parent(), path.file_name().and_then(|n| n.to_str())) {
+        (Some(dir), Some(name)) => {
+            let tail = name.strip_prefix(TMP_PREFIX).and_then(|r| r.splitn(3, '-').nth(2)).unwrap_or(name);
+            let id = NEXT_ID.fetch_add(1, Ordering::Relaxed);
+            let dead = dir.join(format!("{TMP_PREFIX}{}-{id}-{tail}", std::process::id()));
+            if std::fs::rename(path, &dead).is_ok() {
+                dead
+            } else {
+                path.to_path_buf()
+            }
+        }
+        _ => path.to_path_buf(),
+    };
+    for attempt in 0..50 {
+        match std::fs::remove_dir_all(&target) {
+            Ok(()) => return,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => return,
+            Err(_) => std::thread::sleep(std::time::Duration::from_millis(1 + attempt / 10)),
         }
     }
 }

@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use psc_base::limits;
 use psc_base::output::{Replace, StagedDir};
@@ -15,6 +15,9 @@ use psc_runtime::library::Material;
 use psc_runtime::lookup::find_graph;
 use psc_runtime::params::ParamSpace;
 
+use psc_base::progress::Progress;
+
+use crate::progress::Drawer;
 use crate::{checks, Error, Failure};
 
 #[derive(clap::Args)]
@@ -42,6 +45,9 @@ pub struct Args {
     /// Replace an existing --out folder whole (without it, an existing folder is refused).
     #[arg(long)]
     pub force: bool,
+    /// No progress (bars on a terminal, else a line log on stderr).
+    #[arg(long)]
+    pub quiet: bool,
     /// Library root for `import` and for graph names (default: the shipped graphs/ folder).
     #[arg(long)]
     pub lib: Option<PathBuf>,
@@ -74,6 +80,9 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
     let started = Instant::now();
     let mut rng = SplitMix64::new(args.seed);
     let mut files = 0;
+    let mut eval_time = Duration::ZERO;
+    let drawer = Drawer::new(args.quiet);
+    drawer.start("bake", Some(args.random as u64 + 1), &format!("sets of maps at {}²", args.size));
     for k in 0..=args.random {
         let (stem, p) = match k {
             0 => (info.name.clone(), params.clone()),
@@ -81,7 +90,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
         };
         let bake_started = Instant::now();
         let maps = bake::bake(&eval, &p, args.size).map_err(Failure)?;
-        let eval_time = bake_started.elapsed();
+        eval_time += bake_started.elapsed();
         let bad = maps
             .albedo
             .iter()
@@ -99,15 +108,17 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
         let json = serde_json::to_string_pretty(&space.to_json(&p)?)?;
         std::fs::write(&json_path, json).map_err(|e| Failure(format!("cannot write {}: {e}", json_path.display())))?;
         files += written.len() + 1;
-        eprintln!(
-            "{stem}: {}² evaluated in {:.2} s, {} files in {:.2} s",
-            args.size,
-            eval_time.as_secs_f64(),
-            written.len() + 1,
-            bake_started.elapsed().as_secs_f64()
-        );
+        drawer.advance(1);
     }
+    drawer.finish();
     let dest = staged.commit()?;
-    eprintln!("wrote {files} files to {} in {:.2} s", dest.display(), started.elapsed().as_secs_f64());
+    eprintln!(
+        "wrote {files} files ({} sets of maps at {}², evaluated in {:.2} s) to {} in {:.2} s",
+        args.random + 1,
+        args.size,
+        eval_time.as_secs_f64(),
+        dest.display(),
+        started.elapsed().as_secs_f64()
+    );
     Ok(ExitCode::SUCCESS)
 }

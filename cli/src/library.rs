@@ -12,6 +12,9 @@ use psc_runtime::library::{default_library_root, Library};
 use psc_runtime::params::ParamSpace;
 use psc_runtime::sheet::{self, Cell};
 
+use psc_base::progress::Progress;
+
+use crate::progress::Drawer;
 use crate::{checks, Error, Failure, Usage};
 
 #[derive(clap::Args)]
@@ -44,6 +47,9 @@ pub struct Args {
     /// Only graphs whose name or category contains one of these (comma-separated).
     #[arg(long)]
     pub only: Option<String>,
+    /// No progress (bars on a terminal, else a line log on stderr).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 pub fn run(args: Args) -> Result<ExitCode, Error> {
@@ -113,14 +119,18 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
         );
     }
 
+    let drawer = Drawer::new(args.quiet);
     if let Some(size) = args.bench {
         let mut times = Vec::new();
+        drawer.start(&format!("bake at {size}²"), Some(materials.len() as u64), "graphs");
         for m in &materials {
             let params = m.graph.info.default_params();
             let t = Instant::now();
             m.kernel.eval_grid(&params, size, size).map_err(|e| Failure(e.to_string()))?;
             times.push((t.elapsed().as_secs_f64(), m.graph.info.name.clone()));
+            drawer.advance(1);
         }
+        drawer.finish();
         times.sort_by(|a, b| b.0.total_cmp(&a.0));
         println!("bake at {size}² (forward, all channels), slowest first:");
         for (t, name) in &times {
@@ -130,6 +140,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
 
     if let Some(path) = &args.sheet {
         let mut cells = Vec::new();
+        drawer.start("contact sheet", Some((materials.len() * (args.variants + 1)) as u64), "samples");
         for m in &materials {
             let info = &m.graph.info;
             let eval = |p: &[f32], u: &[f32], v: &[f32]| m.kernel.eval(p, u, v).map_err(|e| e.to_string());
@@ -140,8 +151,10 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
                 let maps = bake::bake(&eval, &params, args.size).map_err(Failure)?;
                 let label = if k == 0 { info.name.clone() } else { format!("{} #{k}", info.category) };
                 cells.push(Cell { label, maps });
+                drawer.advance(1);
             }
         }
+        drawer.finish();
         let per_row = args.per_row.max(1) * (args.variants + 1);
         sheet::write_sheet(path, &cells, per_row)
             .map_err(|e| Failure(format!("cannot write {}: {e}", path.display())))?;

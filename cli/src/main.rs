@@ -10,6 +10,7 @@ mod checks;
 mod compile;
 mod fit;
 mod library;
+mod progress;
 mod render;
 
 use std::process::ExitCode;

@@ -8,11 +8,12 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use psc_render::{compute_light_grid, image_io, LightGridOptions, LightsSource, RenderOptions, Renderer};
+use psc_render::{compute_light_grid_with_progress, image_io, LightGridOptions, LightsSource, RenderOptions, Renderer};
 use psc_runtime::view::{open_view, CameraChoice, GeometryChoice, MaterialsChoice, OpenedView, ViewRequest};
 
 use psc_base::output::Replace;
 
+use crate::progress::Drawer;
 use crate::{checks, Error, Failure, Usage};
 
 #[derive(clap::ValueEnum, Clone, Copy, PartialEq, Eq, Debug)]
@@ -96,7 +97,7 @@ pub struct Args {
     /// Validation only: Lambertian shading (the specular lobe off), to compare with Mitsuba's `diffuse`.
     #[arg(long)]
     diffuse_only: bool,
-    /// No progress bar.
+    /// No progress (bars on a terminal, else a line log on stderr).
     #[arg(long)]
     quiet: bool,
     /// Replace an existing --out folder (G-buffers, light grid, per-light images) whole.
@@ -165,15 +166,16 @@ fn replace(args: &Args) -> Replace {
 
 pub fn run(args: Args) -> Result<ExitCode, Error> {
     let output = output(&args)?;
+    let drawer = Drawer::new(args.quiet || args.bench);
     let OpenedView { scene, camera, width, height, materials, radiances, warnings } =
-        open_view(&view_request(&args), None)?;
+        open_view(&view_request(&args), None, &drawer)?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }
     if !args.quiet {
         eprintln!("lights: {}", radiances.source);
     }
-    let renderer = Renderer::new(&scene, materials, &radiances)?;
+    let renderer = Renderer::new_with_progress(&scene, materials, &radiances, &drawer)?;
     let replace = replace(&args);
     let folder = || match &output {
         Output::Folder(dir) => Ok(dir.clone()),
@@ -195,13 +197,12 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
             seed: args.seed,
             max_depth: args.max_depth,
             threads: args.threads,
-            progress: !args.quiet,
             per_light: args.per_light,
             diffuse_only: args.diffuse_only,
             ..Default::default()
         };
         let start = std::time::Instant::now();
-        let grid = compute_light_grid(&renderer, &camera, &opts)?;
+        let grid = compute_light_grid_with_progress(&renderer, &camera, &opts, &drawer)?;
         grid.write_folder(&dir, replace)?;
         eprintln!(
             "wrote a {}x{} light grid (8x16 bins) to {} in {:.2} s",
@@ -220,7 +221,6 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
         seed: args.seed,
         max_depth: args.max_depth,
         threads: args.threads,
-        progress: !args.quiet && !args.bench,
         per_light: args.per_light,
         diffuse_only: args.diffuse_only,
         ..Default::default()
@@ -253,7 +253,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
         }
         return Ok(ExitCode::SUCCESS);
     }
-    let result = renderer.render(&camera, &opts)?;
+    let result = renderer.render_with_progress(&camera, &opts, &drawer)?;
     if args.per_light {
         let dir = folder()?;
         result.write_per_light_folder(&dir, replace)?;

@@ -69,10 +69,14 @@ fn a_bake_that_fails_part_way_leaves_nothing() {
     )
     .unwrap();
     let out = dir.join("maps");
-    let o = psc(&["bake", graph.to_str().unwrap(), "--size", "8", "--random", "8", "--out", out.to_str().unwrap()]);
+    let o = Command::new(env!("CARGO_BIN_EXE_psc"))
+        .args(["bake", graph.to_str().unwrap(), "--size", "8", "--random", "8", "--out", out.to_str().unwrap()])
+        .env("PSC_PROGRESS_SECONDS", "0")
+        .output()
+        .unwrap();
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("fragile_random") && stderr(&o).contains("non-finite"), "{}", stderr(&o));
-    assert!(stderr(&o).contains("fragile: 8²"), "the defaults were baked and written first: {}", stderr(&o));
+    assert!(stderr(&o).contains("bake: 10% (1/9"), "the defaults were baked and written first: {}", stderr(&o));
     assert!(!out.exists(), "a failed bake left {:?}", names(&out));
     assert_eq!(names(&dir), ["fragile.psg"], "temporaries left behind");
     let _ = std::fs::remove_dir_all(&dir);

@@ -14,24 +14,7 @@ pub struct RgbImage {
     pub data: Vec<[f32; 3]>,
 }
 
-#[inline]
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-#[inline]
-pub fn linear_to_srgb(c: f32) -> f32 {
-    let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
-    if c <= 0.003_130_8 {
-        c * 12.92
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
+pub use psc_base::color::{linear_to_srgb, srgb_to_linear};
 
 fn is_exr(path: &Path) -> bool {
     path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("exr"))
@@ -144,14 +127,15 @@ fn encode_png(img: image::DynamicImage) -> Result<Vec<u8>, RenderError> {
     Ok(buf.into_inner())
 }
 
-/// Write a linear image: `.exr` as linear float, `.png` as 8-bit sRGB (clipped to [0, 1]).
+/// Write a linear image: `.exr` as linear float, `.png` as 8-bit sRGB (clipped to [0, 1]; NaN
+/// black, +∞ white: `psc_base::color`).
 pub fn write_rgb(path: &Path, width: usize, height: usize, data: &[[f32; 3]]) -> Result<(), RenderError> {
     assert_eq!(data.len(), width * height);
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     let bytes = match ext.as_deref() {
         Some("exr") => encode_exr(width, height, data)?,
         Some("png") => {
-            let raw: Vec<u8> = data.iter().flat_map(|p| p.map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8)).collect();
+            let raw: Vec<u8> = data.iter().flat_map(|p| p.map(psc_base::color::linear_to_srgb8)).collect();
             let buf = image::RgbImage::from_raw(width as u32, height as u32, raw).expect("sized buffer");
             encode_png(image::DynamicImage::ImageRgb8(buf))?
         }

@@ -9,12 +9,13 @@
 //! Determinism: sample s of pixel i draws from `Rng::new(seed, i, s)` and pixels are reduced in a
 //! fixed order, so the result does not depend on the thread count or scheduling.
 
+use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use psc_base::output::{Replace, StagedDir};
+use psc_base::progress::{self, NoProgress, Progress};
 use rayon::prelude::*;
 
 use crate::brdf::Karis;
@@ -39,8 +40,6 @@ pub struct RenderOptions {
     pub rr_depth: u32,
     /// Worker threads (None = rayon's global pool).
     pub threads: Option<usize>,
-    /// Draw a progress bar on stderr (only when it is a terminal).
-    pub progress: bool,
     /// Also return one image per light slot at unit radiance.
     pub per_light: bool,
     /// Validation only: switch the specular lobe off (pure Lambertian).
@@ -105,7 +104,6 @@ impl Default for RenderOptions {
             max_depth: 6,
             rr_depth: 5,
             threads: None,
-            progress: false,
             per_light: false,
             diffuse_only: false,
         }
@@ -190,7 +188,7 @@ pub struct Renderer {
 
 #[inline]
 fn luminance(c: Vec3) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+    psc_base::color::luminance(c.to_array())
 }
 
 #[inline]
@@ -217,6 +215,17 @@ impl Renderer {
         materials: Vec<MaterialBinding>,
         radiances: &LightRadiances,
     ) -> Result<Self, RenderError> {
+        Self::new_with_progress(scene, materials, radiances, &NoProgress)
+    }
+
+    /// [`Renderer::new`], reporting the BVH build (the long part for large meshes; its length is
+    /// not known in advance) to `progress`.
+    pub fn new_with_progress(
+        scene: &Scene,
+        materials: Vec<MaterialBinding>,
+        radiances: &LightRadiances,
+        progress: &dyn Progress,
+    ) -> Result<Self, RenderError> {
         if materials.len() != scene.mesh.part_names.len() {
             return Err(RenderError::Invalid(format!(
                 "{} material bindings for {} parts",
@@ -225,7 +234,10 @@ impl Renderer {
             )));
         }
         let lights = AreaLights::new(&scene.lights);
-        let geometry = SceneGeometry::new(scene, &lights);
+        let n_tris = scene.mesh.triangles.len() as u64;
+        let geometry = progress::stage(progress, "building BVH", None, &format!("({n_tris} triangles)"), || {
+            SceneGeometry::new(scene, &lights)
+        });
         let mut slot_names = lights.names.clone();
         if scene.environment.is_some() {
             slot_names.push("environment".into());
@@ -493,6 +505,19 @@ impl Renderer {
 
     /// Path-trace an image from `camera` (its resolution is overridden by the options' size).
     pub fn render(&self, camera: &Camera, opts: &RenderOptions) -> Result<RenderOutput, RenderError> {
+        self.render_with_progress(camera, opts, &NoProgress)
+    }
+
+    /// [`Renderer::render`], reporting the stage "render" in samples to `progress`: per row and
+    /// sample pass, with enough passes (at least 256 updates, at most one pass a sample) that a
+    /// small image with many samples still moves. Passes add each pixel's samples in the same
+    /// order as one pass would, so the image does not depend on them.
+    pub fn render_with_progress(
+        &self,
+        camera: &Camera,
+        opts: &RenderOptions,
+        progress: &dyn Progress,
+    ) -> Result<RenderOutput, RenderError> {
         let (w, h, ns) = (opts.width, opts.height, self.n_slots());
         opts.check(ns)?;
         let mut cam = camera.clone();
@@ -501,17 +526,27 @@ impl Renderer {
         }
         let start = Instant::now();
         let rays = AtomicU64::new(0);
-        let bar = progress_bar(opts.progress, h as u64, "render");
         let mut slots = vec![Vec3::ZERO; w * h * ns];
         let cfg = opts.path_config();
+        let spp = opts.spp as usize;
+        let passes = 256usize.div_ceil(h).clamp(1, spp);
         let body = |slots: &mut Vec<Vec3>| {
-            slots.par_chunks_mut(w * ns).enumerate().for_each(|(y, row)| {
-                rays.fetch_add(self.render_row(&cam, opts, &cfg, y, row), Ordering::Relaxed);
-                bar.inc(1);
-            });
+            if ns == 0 {
+                return; // no lights and no environment: a black image
+            }
+            for p in 0..passes {
+                let samples = (spp * p / passes) as u32..(spp * (p + 1) / passes) as u32;
+                let last = p + 1 == passes;
+                slots.par_chunks_mut(w * ns).enumerate().for_each(|(y, row)| {
+                    let r = self.render_row(&cam, opts, &cfg, y, row, samples.clone(), last);
+                    rays.fetch_add(r, Ordering::Relaxed);
+                    progress.advance((w * samples.len()) as u64);
+                });
+            }
         };
-        run_in_pool(opts.threads, || body(&mut slots))?;
-        bar.finish_and_clear();
+        progress::stage(progress, "render", Some((w * h * spp) as u64), "samples", || {
+            run_in_pool(opts.threads, || body(&mut slots))
+        })?;
         let image: Vec<[f32; 3]> = slots
             .chunks_exact(ns.max(1))
             .map(|px| px.iter().zip(&self.slot_radiance).fold(Vec3::ZERO, |a, (v, r)| a + *v * *r).to_array())
@@ -534,42 +569,73 @@ impl Renderer {
         })
     }
 
-    /// Row `y` of the slot images (`row`: width × slots); returns the rays cast. Dispatches to a
-    /// copy compiled for AVX2 where the CPU has it (VEX encoding, SSE4.1 rounding and blends;
-    /// no FMA contraction, so the results are bit-identical to the baseline copy).
-    fn render_row(&self, cam: &Camera, opts: &RenderOptions, cfg: &PathConfig, y: usize, row: &mut [Vec3]) -> u64 {
+    /// Adds samples `samples` of every pixel of row `y` to `row` (width × slots, zero before
+    /// the first pass) and, on the `last` pass, divides by the sample count; returns the rays
+    /// cast. Dispatches to a copy compiled for AVX2 where the CPU has it (VEX encoding, SSE4.1
+    /// rounding and blends; no FMA contraction, so the results are bit-identical to the baseline
+    /// copy).
+    #[allow(clippy::too_many_arguments)]
+    fn render_row(
+        &self,
+        cam: &Camera,
+        opts: &RenderOptions,
+        cfg: &PathConfig,
+        y: usize,
+        row: &mut [Vec3],
+        samples: Range<u32>,
+        last: bool,
+    ) -> u64 {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports the features the function is compiled for.
-            return unsafe { self.render_row_avx2(cam, opts, cfg, y, row) };
+            return unsafe { self.render_row_avx2(cam, opts, cfg, y, row, samples, last) };
         }
-        self.render_row_impl(cam, opts, cfg, y, row)
+        self.render_row_impl(cam, opts, cfg, y, row, samples, last)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn render_row_avx2(&self, cam: &Camera, opts: &RenderOptions, cfg: &PathConfig, y: usize, row: &mut [Vec3]) -> u64 {
-        self.render_row_impl(cam, opts, cfg, y, row)
+    #[allow(clippy::too_many_arguments)]
+    fn render_row_avx2(
+        &self,
+        cam: &Camera,
+        opts: &RenderOptions,
+        cfg: &PathConfig,
+        y: usize,
+        row: &mut [Vec3],
+        samples: Range<u32>,
+        last: bool,
+    ) -> u64 {
+        self.render_row_impl(cam, opts, cfg, y, row, samples, last)
     }
 
     #[inline(always)]
-    fn render_row_impl(&self, cam: &Camera, opts: &RenderOptions, cfg: &PathConfig, y: usize, row: &mut [Vec3]) -> u64 {
+    #[allow(clippy::too_many_arguments)]
+    fn render_row_impl(
+        &self,
+        cam: &Camera,
+        opts: &RenderOptions,
+        cfg: &PathConfig,
+        y: usize,
+        row: &mut [Vec3],
+        samples: Range<u32>,
+        last: bool,
+    ) -> u64 {
         let (w, ns) = (opts.width, self.n_slots());
-        let mut acc = vec![Vec3::ZERO; ns];
         let mut row_rays = 0u64;
         for x in 0..w {
             let pixel = (y * w + x) as u64;
-            acc.iter_mut().for_each(|a| *a = Vec3::ZERO);
-            for s in 0..opts.spp {
-                let mut st = PathState { rng: Rng::new(opts.seed, pixel, s as u64), rays: 0, out: &mut acc };
+            let acc = &mut row[x * ns..(x + 1) * ns];
+            for s in samples.clone() {
+                let mut st = PathState { rng: Rng::new(opts.seed, pixel, s as u64), rays: 0, out: acc };
                 let j = st.rng.next_2d();
                 let d = cam.direction(x as f32 + j[0], y as f32 + j[1]);
                 self.li_inline(cam.position, d, cfg, &mut st);
                 row_rays += st.rays;
             }
-            let inv = 1.0 / opts.spp as f32;
-            for k in 0..ns {
-                row[x * ns + k] = acc[k] * inv;
+            if last {
+                let inv = 1.0 / opts.spp as f32;
+                acc.iter_mut().for_each(|a| *a *= inv);
             }
         }
         row_rays
@@ -639,16 +705,4 @@ pub(crate) fn run_in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T
             Ok(pool.install(f))
         }
     }
-}
-
-pub(crate) fn progress_bar(show: bool, len: u64, what: &str) -> ProgressBar {
-    if !show {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
-    if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} rows, {elapsed} (eta {eta})") {
-        bar.set_style(style.progress_chars("=> "));
-    }
-    bar.set_message(what.to_string());
-    bar
 }

@@ -37,7 +37,9 @@ pub use camera::{Camera, CameraSpec};
 pub use error::RenderError;
 pub use gbuffer::{render_gbuffer, GBuffer};
 pub use integrator::{RenderOptions, RenderOutput, Renderer};
-pub use lightgrid::{compute_light_grid, LightGrid, LightGridOptions, GRID_PHI_BINS, GRID_THETA_BINS};
+pub use lightgrid::{
+    compute_light_grid, compute_light_grid_with_progress, LightGrid, LightGridOptions, GRID_PHI_BINS, GRID_THETA_BINS,
+};
 pub use lights::{LightRadiances, LightsFile, LightsSource};
 pub use material::{ConstantMaterial, ImageMaterial, MaterialBinding, SurfaceMaterial, SurfaceSample, Texture};
 pub use scene::{Scene, View};

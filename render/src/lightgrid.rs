@@ -21,13 +21,14 @@ use std::path::Path;
 
 use glam::Vec3;
 use psc_base::output::{Replace, StagedDir};
+use psc_base::progress::{self, NoProgress, Progress};
 use rayon::prelude::*;
 use serde_json::json;
 
 use crate::camera::Camera;
 use crate::geometry::Traced;
 use crate::image_io;
-use crate::integrator::{progress_bar, run_in_pool, PathConfig, PathState, Renderer};
+use crate::integrator::{run_in_pool, PathConfig, PathState, Renderer};
 use crate::rng::Rng;
 use crate::RenderError;
 
@@ -44,7 +45,6 @@ pub struct LightGridOptions {
     pub max_depth: u32,
     pub rr_depth: u32,
     pub threads: Option<usize>,
-    pub progress: bool,
     /// Keep one grid per light slot.
     pub per_light: bool,
     /// Validation only: Lambertian bounces (the specular lobe off) along the grid's paths.
@@ -60,7 +60,6 @@ impl Default for LightGridOptions {
             max_depth: 6,
             rr_depth: 5,
             threads: None,
-            progress: false,
             per_light: false,
             diffuse_only: false,
         }
@@ -114,6 +113,16 @@ struct Cell {
 
 /// Estimate the grid for `camera` (at its resolution).
 pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions) -> Result<LightGrid, RenderError> {
+    compute_light_grid_with_progress(r, camera, opts, &NoProgress)
+}
+
+/// [`compute_light_grid`], reporting the stage "light grid" in cells to `progress`.
+pub fn compute_light_grid_with_progress(
+    r: &Renderer,
+    camera: &Camera,
+    opts: &LightGridOptions,
+    progress: &dyn Progress,
+) -> Result<LightGrid, RenderError> {
     use psc_base::limits;
     if opts.stride == 0 || opts.samples_per_bin == 0 {
         return Err(RenderError::Invalid("light grid stride and samples per bin must be positive".into()));
@@ -140,14 +149,13 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
         per_cell,
     )?;
     let n_parts = r.part_names().len() as u32;
-    let bar = progress_bar(opts.progress, (gw * gh) as u64, "light grid");
     let cfg = PathConfig {
         max_depth: opts.max_depth.saturating_sub(1),
         rr_depth: opts.rr_depth,
         per_light: opts.per_light,
         diffuse_only: opts.diffuse_only,
     };
-    let cells: Vec<Cell> = run_in_pool(opts.threads, || {
+    let work = || {
         (0..gw * gh)
             .into_par_iter()
             .map(|c| {
@@ -166,11 +174,11 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
                     Traced::Surface(hit) => hit,
                     Traced::Emitter { light, .. } => {
                         cell.part = (n_parts + 1 + light) as u16;
-                        bar.inc(1);
+                        progress.advance(1);
                         return cell;
                     }
                     Traced::Miss => {
-                        bar.inc(1);
+                        progress.advance(1);
                         return cell;
                     }
                 };
@@ -206,12 +214,13 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
                 cell.p = hit.p.to_array();
                 cell.n = frame.n.to_array();
                 cell.t = frame.t.to_array();
-                bar.inc(1);
+                progress.advance(1);
                 cell
             })
             .collect()
-    })?;
-    bar.finish_and_clear();
+    };
+    let cells: Vec<Cell> =
+        progress::stage(progress, "light grid", Some((gw * gh) as u64), "cells", || run_in_pool(opts.threads, work))?;
     let mut radiance = vec![0.0f32; gw * gh * BINS * 3];
     let mut per_slot: Vec<(String, Vec<f32>)> = if opts.per_light {
         r.slot_names().iter().map(|n| (n.clone(), vec![0.0f32; gw * gh * BINS * 3])).collect()

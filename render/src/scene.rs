@@ -14,6 +14,8 @@ use std::sync::Arc;
 use glam::Vec3;
 use serde::Deserialize;
 
+use psc_base::progress::{NoProgress, Progress};
+
 use crate::camera::{Camera, CameraSpec};
 use crate::emitters::EnvMap;
 use crate::image_io;
@@ -131,6 +133,16 @@ impl Scene {
     /// Like [`Scene::load`] but with another OBJ in place of the manifest's mesh (e.g. the dev
     /// scenes' `truth/scene_true.obj` for validation).
     pub fn load_with_mesh(dir: &Path, mesh_override: Option<&Path>) -> Result<Scene, RenderError> {
+        Self::load_with_progress(dir, mesh_override, &NoProgress)
+    }
+
+    /// [`Scene::load_with_mesh`], reporting the loading of the mesh (in bytes parsed) to
+    /// `progress`.
+    pub fn load_with_progress(
+        dir: &Path,
+        mesh_override: Option<&Path>,
+        progress: &dyn Progress,
+    ) -> Result<Scene, RenderError> {
         let manifest_path = dir.join("scene.json");
         let m: Manifest = crate::json::read(&manifest_path, "scene manifest (scene.json)")?;
         let mut warnings = Vec::new();
@@ -158,7 +170,7 @@ impl Scene {
             Some(p) => p.to_path_buf(),
             None => require_file(dir, &m.mesh, "mesh")?,
         };
-        let mesh = mesh::load_obj(&mesh_path, &mut warnings)?;
+        let mesh = mesh::load_obj_with_progress(&mesh_path, &mut warnings, progress)?;
 
         let mut views: Vec<View> = Vec::new();
         for v in &m.views {

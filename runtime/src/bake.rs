@@ -57,25 +57,8 @@ pub fn bake(eval: &Evaluator, params: &[f32], size: usize) -> Result<Maps, Strin
     maps_from_channels(size, &ch)
 }
 
-/// Linear to sRGB transfer, in [0,1].
-pub fn linear_to_srgb(x: f32) -> f32 {
-    let x = x.clamp(0.0, 1.0);
-    if x <= 0.003_130_8 {
-        12.92 * x
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// sRGB to linear transfer, in [0,1].
-pub fn srgb_to_linear(x: f32) -> f32 {
-    let x = x.clamp(0.0, 1.0);
-    if x <= 0.040_45 {
-        x / 12.92
-    } else {
-        ((x + 0.055) / 1.055).powf(2.4)
-    }
-}
+/// The workspace's one sRGB transfer (clamped to [0, 1], NaN to 0).
+pub use psc_base::color::{linear_to_srgb, srgb_to_linear};
 
 fn to_u8(x: f32) -> u8 {
     if x.is_nan() {

@@ -18,6 +18,7 @@
 
 use std::fmt;
 
+use psc_base::color::{linear_to_srgb, srgb_to_linear};
 use psc_base::SplitMix64;
 use psc_compiler::{GraphInfo, ParamInfo, ParamKind};
 use serde_json::Value;
@@ -406,16 +407,6 @@ pub(crate) fn describe(v: &Value) -> String {
     } else {
         kind.to_string()
     }
-}
-
-/// Linear to sRGB transfer, in [0,1].
-fn linear_to_srgb(x: f32) -> f32 {
-    crate::bake::linear_to_srgb(x)
-}
-
-/// sRGB to linear transfer, in [0,1].
-fn srgb_to_linear(x: f32) -> f32 {
-    crate::bake::srgb_to_linear(x)
 }
 
 #[cfg(test)]

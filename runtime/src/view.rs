@@ -17,6 +17,7 @@
 use std::fmt;
 use std::path::PathBuf;
 
+use psc_base::progress::Progress;
 use psc_render::camera::{load_camera_file, Camera};
 use psc_render::material::MaterialBinding;
 use psc_render::{truth, LightRadiances, LightsSource, RenderError, Scene};
@@ -156,7 +157,12 @@ pub const FALLBACK_SIZE: (usize, usize) = (640, 480);
 
 /// Opens `req` (see the module docs). `library` serves the assignment when given; otherwise it
 /// is loaded from `req.library` (or the shipped graphs/) only if there is an assignment.
-pub fn open_view(req: &ViewRequest, library: Option<&Library>) -> Result<OpenedView, OpenError> {
+/// Loading the meshes reports to `progress`.
+pub fn open_view(
+    req: &ViewRequest,
+    library: Option<&Library>,
+    progress: &dyn Progress,
+) -> Result<OpenedView, OpenError> {
     let mesh_override = match req.geometry {
         GeometryChoice::Model => None,
         GeometryChoice::Truth => Some(
@@ -164,7 +170,7 @@ pub fn open_view(req: &ViewRequest, library: Option<&Library>) -> Result<OpenedV
                 .ok_or_else(|| OpenError::NoTruth { what: "geometry", scene: req.scene.clone() })?,
         ),
     };
-    let scene = Scene::load_with_mesh(&req.scene, mesh_override.as_deref())?;
+    let scene = Scene::load_with_progress(&req.scene, mesh_override.as_deref(), progress)?;
     let mut warnings = scene.warnings.clone();
 
     let (spec, default_size, context) = match &req.camera {

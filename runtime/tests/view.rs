@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use psc_base::progress::NoProgress;
 use psc_render::LightsSource;
 use psc_runtime::lookup::{find_graph, LookupError};
 use psc_runtime::view::{open_view, CameraChoice, GeometryChoice, MaterialsChoice, OpenError, ViewRequest};
@@ -45,7 +46,7 @@ fn room_request() -> ViewRequest {
 
 #[test]
 fn defaults_are_the_first_view_the_model_the_mtl_and_unit_lights() {
-    let v = open_view(&room_request(), None).unwrap();
+    let v = open_view(&room_request(), None, &NoProgress).unwrap();
     let photo = &v.scene.views[0];
     assert_eq!((v.width, v.height), (photo.width, photo.height));
     assert_eq!(v.camera.position.to_array(), photo.camera.position.to_array());
@@ -71,26 +72,26 @@ fn size_camera_file_assignment_and_lights_file_are_applied() {
         lights: LightsSource::File(room.join("lights.json")),
         ..room_request()
     };
-    let v = open_view(&req, None).unwrap();
+    let v = open_view(&req, None, &NoProgress).unwrap();
     assert_eq!((v.width, v.height), (40, 30), "the camera file's size");
     assert_eq!(v.radiances.lights[0], [39.3, 38.5, 37.6]);
     let floor = v.scene.mesh.part_names.iter().position(|p| p == "floor").unwrap();
     assert_eq!(v.materials[floor].uv_transform[0][0], 2.0, "the assignment's uv_scale");
-    let v = open_view(&ViewRequest { size: Some((8, 6)), ..req }, None).unwrap();
+    let v = open_view(&ViewRequest { size: Some((8, 6)), ..req }, None, &NoProgress).unwrap();
     assert_eq!((v.width, v.height, v.camera.width), (8, 6, 8), "an explicit size wins");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn unknown_views_and_missing_truth_are_errors() {
-    let e = open_view(&ViewRequest { camera: CameraChoice::View("view9".into()), ..room_request() }, None);
+    let e = open_view(&ViewRequest { camera: CameraChoice::View("view9".into()), ..room_request() }, None, &NoProgress);
     assert!(matches!(&e, Err(OpenError::NoSuchView { known, .. }) if known == &["view0"]));
     for req in [
         ViewRequest { geometry: GeometryChoice::Truth, ..room_request() },
         ViewRequest { materials: MaterialsChoice::Truth, ..room_request() },
         ViewRequest { lights: LightsSource::Truth, ..room_request() },
     ] {
-        let e = open_view(&req, None).err().expect("the example has no ground truth");
+        let e = open_view(&req, None, &NoProgress).err().expect("the example has no ground truth");
         assert!(e.to_string().contains("asked for the true") || e.to_string().contains("truth"), "{e}");
     }
 }
@@ -110,14 +111,14 @@ fn truth_is_read_only_when_asked_for_by_name() {
         lights: LightsSource::File(dir.join("lights.json")),
         ..Default::default()
     };
-    let v = open_view(&req, None).expect("truth/ is not read");
+    let v = open_view(&req, None, &NoProgress).expect("truth/ is not read");
     assert!(v.warnings.iter().all(|w| !w.contains("truth")), "{:?}", v.warnings);
     for (what, req) in [
         ("lights", ViewRequest { lights: LightsSource::Truth, ..req.clone() }),
         ("materials", ViewRequest { materials: MaterialsChoice::Truth, ..req.clone() }),
         ("geometry", ViewRequest { geometry: GeometryChoice::Truth, ..req.clone() }),
     ] {
-        let e = open_view(&req, None).err().unwrap_or_else(|| panic!("{what}: truth/ is broken"));
+        let e = open_view(&req, None, &NoProgress).err().unwrap_or_else(|| panic!("{what}: truth/ is broken"));
         assert!(e.to_string().contains("truth"), "{what}: {e}");
     }
     let _ = std::fs::remove_dir_all(&dir);
@@ -140,7 +141,10 @@ fn graphs_are_found_by_file_or_library_name() {
     );
     assert_eq!(find_graph("oak_planks", None, None).unwrap().info.name, "oak_planks");
     assert!(matches!(find_graph("oak_plank", None, None), Err(LookupError::NoSuchGraph { .. })));
-    assert!(matches!(find_graph("oak_planks", Some("walnut"), None), Err(LookupError::NameConflict { .. })));
+    assert!(matches!(
+        find_graph("oak_planks", Some("walnut"), None),
+        Err(LookupError::NameConflict { .. })
+    ));
     assert!(matches!(find_graph(dir.to_str().unwrap(), None, None), Err(LookupError::IsADirectory(_))));
     assert!(matches!(find_graph("no/such.psg", None, None), Err(LookupError::NoSuchFile(_))));
     // A library of one file still finds graphs by name, not "the first one".

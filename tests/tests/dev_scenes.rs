@@ -5,6 +5,7 @@
 
 use std::path::Path;
 
+use psc_base::progress::NoProgress;
 use psc_render::LightsSource;
 use psc_render::{RenderOptions, Renderer};
 use psc_runtime::view::{open_view, GeometryChoice, MaterialsChoice, OpenedView, ViewRequest};
@@ -28,7 +29,7 @@ fn truth_choices_open_every_dev_scene() {
             size: Some((16, 12)),
             ..Default::default()
         };
-        let v = open_view(&truth, None).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
+        let v = open_view(&truth, None, &NoProgress).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
         assert!(v.radiances.source.contains("truth.json"), "{}", v.radiances.source);
         assert!(v.radiances.lights.iter().any(|r| *r != [1.0; 3]), "{}: unit radiances from truth?", dir.display());
         let img = render_small(&v);
@@ -60,9 +61,11 @@ fn default_choices_render_the_same_without_truth() {
     let _ = std::fs::remove_dir_all(&copy);
     copy_tree(&dir, &copy, "truth");
     assert!(!copy.join("truth").exists());
-    let with = open_view(&ViewRequest { scene: dir, size: Some((24, 18)), ..Default::default() }, None).unwrap();
+    let with =
+        open_view(&ViewRequest { scene: dir, size: Some((24, 18)), ..Default::default() }, None, &NoProgress).unwrap();
     let without =
-        open_view(&ViewRequest { scene: copy.clone(), size: Some((24, 18)), ..Default::default() }, None).unwrap();
+        open_view(&ViewRequest { scene: copy.clone(), size: Some((24, 18)), ..Default::default() }, None, &NoProgress)
+            .unwrap();
     assert_eq!(with.radiances.lights, without.radiances.lights);
     assert_eq!(render_small(&with), render_small(&without));
     let _ = std::fs::remove_dir_all(&copy);
