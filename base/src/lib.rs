@@ -6,7 +6,8 @@
 //! not at all ([`output`]: atomic file writes, staged output folders, removal of temporaries on
 //! error, drop, SIGINT and SIGTERM); resource limits ([`limits`]: pixels, texels, samples,
 //! threads, variants and a memory budget, checked before allocating); progress reporting that
-//! any crate can call and only the command line draws ([`progress`]).
+//! any crate can call and only the command line draws ([`progress`]); the one folder walker
+//! ([`walk::files_with_extension`]: follows links, never loops, lists each real file once).
 //!
 //! Must never: depend on another photoscene crate or on anything but `std` and `ctrlc` (the
 //! signal handler of [`output`]); know about graphs, kernels, scenes or images.
@@ -17,6 +18,7 @@ pub mod color;
 pub mod limits;
 pub mod output;
 pub mod progress;
+pub mod walk;
 
 /// SplitMix64 finaliser: a good 64-bit mixing function.
 #[inline]

@@ -1,18 +1,19 @@
 //! `psc bench`: JIT against interpreter, forward and forward+adjoint, on a size×size grid.
 //!
-//! Until the graph front end is wired in, it benchmarks a built-in synthetic workload (a
-//! seeded random material-like program of about `--synthetic` ops). [`bench_program`] is the
-//! entry point for real graphs. Timings are the best of `--runs` runs (a shared machine is
-//! noisy); both the JIT and the interpreter run on all rayon threads over the same chunks.
+//! Benchmarks the graphs of the given files at their defaults or, without any, a seeded
+//! synthetic material-like program of about `--synthetic` ops. Timings are the best of
+//! `--runs` runs (a shared machine is noisy); both the JIT and the interpreter run on all rayon
+//! threads over the same chunks.
 
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use psc_compiler::diff::reverse;
 use psc_compiler::interp;
-use psc_compiler::ir::{Builder, NodeId, Output, Program};
+use psc_compiler::ir::{random, Program};
+use psc_compiler::Adjoint;
 use psc_jit::{CompiledKernel, OptLevel, Options};
-use psc_runtime::kernel::{grid_uv, Gradients, Kernel, CHUNK};
+use psc_runtime::kernel::{chunk_ranges, grid_uv, run_chunked, Gradients, Kernel};
 use rayon::prelude::*;
 
 use crate::Failure;
@@ -74,7 +75,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     if !args.paths.is_empty() {
         return bench_graphs(&args);
     }
-    let forward = synthetic_program(args.synthetic, args.seed);
+    let forward = random::material_like(args.synthetic, args.seed);
     let wrt: Vec<u32> = (0..forward.num_params as u32).collect();
     let adjoint = reverse::adjoint(&forward, &wrt);
     let name = format!("synthetic-{}#{}", args.synthetic, args.seed);
@@ -83,21 +84,9 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     print_table(&[row], args.size);
     if args.variants {
         print_variants("forward", &forward, args.size, args.runs)?;
-        print_variants("forward+adjoint", &adjoint, args.size, args.runs)?;
+        print_variants("forward+adjoint", &adjoint.program, args.size, args.runs)?;
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// Benchmarks one program (and its adjoint, if given) with 3 runs per measurement: the entry
-/// point for real graphs once the front end is wired into `psc bench`.
-#[allow(dead_code)]
-pub fn bench_program(
-    name: &str,
-    forward: &Program,
-    adjoint: Option<&Program>,
-    size: usize,
-) -> Result<BenchRow, Failure> {
-    bench_program_runs(name, forward, adjoint, &bench_params(forward.num_params), size, 3)
 }
 
 /// Every graph of the given files at its default parameters, adjoint over its continuous ones.
@@ -115,7 +104,7 @@ fn bench_graphs(args: &Args) -> Result<ExitCode, Failure> {
         rows.push(bench_program_runs(&g.info.name, &g.forward, Some(&adjoint), &params, args.size, args.runs)?);
         if args.variants {
             print_variants(&format!("{} forward", g.info.name), &g.forward, args.size, args.runs)?;
-            print_variants(&format!("{} forward+adjoint", g.info.name), &adjoint, args.size, args.runs)?;
+            print_variants(&format!("{} forward+adjoint", g.info.name), &adjoint.program, args.size, args.runs)?;
         }
         eprintln!("benchmarked {}", g.info.name);
     }
@@ -126,7 +115,7 @@ fn bench_graphs(args: &Args) -> Result<ExitCode, Failure> {
 fn bench_program_runs(
     name: &str,
     forward: &Program,
-    adjoint: Option<&Program>,
+    adjoint: Option<&Adjoint>,
     params: &[f32],
     size: usize,
     runs: usize,
@@ -163,7 +152,7 @@ fn bench_program_runs(
         if let Some(adj) = adjoint {
             best[2] = best[2].min(time(|| kernel.adjoint_into(params, &u, &v, &seed_refs, &mut gradients))?);
             best[3] = best[3].min(time(|| {
-                interp_chunked(adj, params, &u, &v, &seed_refs);
+                interp_chunked(&adj.program, params, &u, &v, &seed_refs);
                 Ok::<_, Failure>(())
             })?);
         }
@@ -176,7 +165,7 @@ fn bench_program_runs(
     Ok(BenchRow {
         name: name.to_string(),
         ops: forward.op_count(),
-        adjoint_ops: adjoint.map(Program::op_count),
+        adjoint_ops: adjoint.map(|a| a.program.op_count()),
         compile: kernel.forward_jit().compile_time(),
         adjoint_compile: kernel.adjoint_jit().map(CompiledKernel::compile_time),
         jit_forward,
@@ -211,8 +200,7 @@ fn best_of<E>(runs: usize, mut f: impl FnMut() -> Result<(), E>) -> Result<Durat
 
 /// The interpreter over the same parallel chunks as the kernel layer; results discarded.
 fn interp_chunked(program: &Program, params: &[f32], u: &[f32], v: &[f32], seeds: &[&[f32]]) {
-    (0..u.len().div_ceil(CHUNK)).into_par_iter().for_each(|c| {
-        let r = c * CHUNK..((c + 1) * CHUNK).min(u.len());
+    chunk_ranges(u.len()).for_each(|r| {
         let s: Vec<&[f32]> = seeds.iter().map(|col| &col[r.clone()]).collect();
         let out = interp::eval(program, params, &interp::Batch { u: &u[r.clone()], v: &v[r], seeds: &s });
         std::hint::black_box(out);
@@ -305,6 +293,7 @@ fn print_variants(what: &str, program: &Program, size: usize, runs: usize) -> Re
     let (u, v) = grid_uv(size, size)?;
     let params = bench_params(program.num_params);
     let seeds: Vec<Vec<f32>> = (0..program.num_seeds).map(|_| vec![0.5; u.len()]).collect();
+    let seed_refs: Vec<&[f32]> = seeds.iter().map(|s| &s[..]).collect();
     println!("code generation variants ({what}, {} ops):", program.op_count());
     let scheduled = Options::default().schedule;
     let variants = [OptLevel::None, OptLevel::Speed]
@@ -314,20 +303,8 @@ fn print_variants(what: &str, program: &Program, size: usize, runs: usize) -> Re
     for options in variants {
         let Options { opt_level, groups, schedule } = options;
         let k = psc_jit::compile_with(program, &options)?;
-        let mut outs = vec![vec![0.0f32; u.len()]; k.num_outputs()];
-        let t = best_of(runs, || {
-            let mut work: Vec<Vec<&mut [f32]>> = (0..u.len().div_ceil(CHUNK)).map(|_| Vec::new()).collect();
-            for col in outs.iter_mut() {
-                for (c, piece) in col.chunks_mut(CHUNK).enumerate() {
-                    work[c].push(piece);
-                }
-            }
-            work.into_par_iter().enumerate().try_for_each(|(c, mut o)| {
-                let r = c * CHUNK..((c + 1) * CHUNK).min(u.len());
-                let s: Vec<&[f32]> = seeds.iter().map(|col| &col[r.clone()]).collect();
-                k.run(&params, &u[r.clone()], &v[r], &s, &mut o)
-            })
-        })?;
+        let mut outs = Vec::new();
+        let t = best_of(runs, || run_chunked(&k, &params, &u, &v, &seed_refs, &mut outs))?;
         println!(
             "  opt_level={:<5} vectors/iter={groups} scheduled={:<5}: {:>8.1} Mtexels/s  compile {:>7} ms",
             format!("{opt_level:?}").to_lowercase(),
@@ -337,147 +314,4 @@ fn print_variants(what: &str, program: &Program, size: usize, runs: usize) -> Re
         );
     }
     Ok(())
-}
-
-/// splitmix64: a small deterministic generator, so workloads are reproducible by seed.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-    fn unit(&mut self) -> f32 {
-        (self.next() >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
-/// A seeded random material-like program of about `ops` IR ops: mostly arithmetic, with
-/// the mix of transcendentals, comparisons, selects and hashes procedural graphs use; every
-/// argument is shaped so values stay finite (exp of negatives, log of 1 + x², …).
-pub fn synthetic_program(ops: usize, seed: u64) -> Program {
-    // Dead code is removed at the end; generate until what survives has `ops` ops.
-    let mut raw = ops;
-    loop {
-        let prog = synthetic_attempt(raw, seed);
-        if prog.op_count() >= ops || raw > ops * 4 {
-            return prog;
-        }
-        raw += raw / 8 + 1;
-    }
-}
-
-fn synthetic_attempt(raw: usize, seed: u64) -> Program {
-    let mut r = Rng(seed ^ 0x5053_4342_454E_4348);
-    let mut b = Builder::new();
-    let mut pool: Vec<NodeId> = vec![b.u(), b.v()];
-    for p in 0..8 {
-        pool.push(b.param(p));
-    }
-    for _ in 0..4 {
-        let c = b.constant((r.unit() * 8.0 - 4.0).round() / 2.0 + 0.25);
-        pool.push(c);
-    }
-    let leaves = b.len();
-    // Prefer recent nodes so the program has depth, like chained graph nodes.
-    let pick = |r: &mut Rng, pool: &[NodeId]| pool[pool.len() - 1 - r.below(pool.len().min(24))];
-    let mut guard = 0;
-    while b.len() - leaves < raw && guard < raw * 20 {
-        guard += 1;
-        let (x, y, z) = (pick(&mut r, &pool), pick(&mut r, &pool), pick(&mut r, &pool));
-        let one = b.constant(1.0);
-        let node = match r.below(100) {
-            0..=19 => b.add(x, y),
-            20..=31 => b.sub(x, y),
-            32..=51 => b.mul(x, y),
-            52..=57 => b.sin(x),
-            58..=61 => b.cos(x),
-            62..=64 => {
-                let a = b.abs(x);
-                let n = b.neg(a);
-                b.exp(n)
-            }
-            65..=67 => {
-                let s = b.mul(x, x);
-                let t = b.add(one, s);
-                b.log(t)
-            }
-            68..=69 => {
-                let a = b.abs(x);
-                let t = b.add(one, a);
-                let e = b.sin(y);
-                b.pow(t, e)
-            }
-            70..=71 => b.atan2(x, y),
-            72..=74 => b.fract(x),
-            75..=76 => {
-                let s = b.scale(16.0, x);
-                b.hash(s, y)
-            }
-            77..=80 => b.min(x, y),
-            81..=84 => b.max(x, y),
-            85..=88 => {
-                let c = b.lt(x, y);
-                b.select(c, y, z)
-            }
-            89..=92 => {
-                let a = b.abs(x);
-                b.sqrt(a)
-            }
-            93..=95 => {
-                let d = b.mul(y, y);
-                let d = b.add(one, d);
-                b.div(x, d)
-            }
-            _ => b.scale(0.5, x),
-        };
-        // Renormalise now and then, as graphs do with mix/clamp, so magnitudes stay sane:
-        // a soft clamp x / (1 + |x|) or a periodic remap.
-        let node = match r.below(6) {
-            0 | 1 => {
-                let a = b.abs(node);
-                let d = b.add(one, a);
-                b.div(node, d)
-            }
-            2 => b.sin(node),
-            _ => node,
-        };
-        pool.push(node);
-    }
-    let names = ["albedo.r", "albedo.g", "albedo.b", "roughness", "height"];
-    let outputs = names
-        .iter()
-        .enumerate()
-        .map(|(k, name)| Output { name: (*name).into(), node: pool[pool.len() - 1 - 3 * k] })
-        .collect();
-    let mut prog = b.finish(outputs);
-    prog.eliminate_dead_code();
-    prog
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn synthetic_workload_is_deterministic_valid_and_finite() {
-        let a = synthetic_program(300, 7);
-        assert_eq!(a, synthetic_program(300, 7));
-        assert_ne!(a, synthetic_program(300, 8));
-        for seed in 1..6 {
-            let a = synthetic_program(300, seed);
-            assert!(a.op_count() >= 300, "{} ops", a.op_count());
-            a.validate().unwrap();
-            let (u, v) = grid_uv(32, 32).unwrap();
-            let out = Kernel::new(a.clone()).unwrap().eval(&bench_params(a.num_params), &u, &v).unwrap();
-            // NaN/inf (and their slow paths) would make the benchmark unrepresentative.
-            assert!(out.iter().flatten().all(|x| x.is_finite()), "seed {seed}: the workload should stay finite");
-        }
-    }
 }

@@ -6,8 +6,8 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use clap::ValueEnum;
-use psc_compiler::graph::ParamKind;
-use psc_compiler::{compile_files, CompiledGraph, Options};
+use psc_compiler::ParamKind;
+use psc_compiler::{compile_files, Adjoint, CompiledGraph, Options};
 use serde_json::json;
 
 use crate::Failure;
@@ -95,12 +95,12 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         match args.emit {
             Some(Emit::Ir) => {
                 for g in &output.graphs {
-                    println!("; graph {} ({})\n{}", g.info.name, g.info.file.display(), g.forward);
+                    println!("{}", g.ir_dump());
                 }
             }
             Some(Emit::Adjoint) => {
                 for (g, (adj, _)) in output.graphs.iter().zip(&adjoints) {
-                    println!("; adjoint of graph {} ({})\n{adj}", g.info.name, g.info.file.display());
+                    println!("{}", g.adjoint_dump(adj));
                 }
             }
             _ => print_summary(&output, &adjoints, files.len(), total),
@@ -142,7 +142,7 @@ fn param_summary(g: &CompiledGraph) -> (usize, usize, usize) {
 
 fn print_summary(
     output: &psc_compiler::CompileOutput,
-    adjoints: &[(psc_compiler::ir::Program, Duration)],
+    adjoints: &[(Adjoint, Duration)],
     files: usize,
     total: Duration,
 ) {
@@ -163,10 +163,14 @@ fn print_summary(
             println!("    {:<18} {:<24} default {:?}", p.name, range, p.default);
         }
         println!(
-            "  IR         {} nodes requested -> {} after CSE/folding -> {} ops after DCE",
-            g.stats.requested_nodes, g.stats.nodes_before_dce, g.stats.forward_ops
+            "  IR         {} nodes requested -> {} after CSE/folding -> {} ops after DCE ({} lowering steps of {})",
+            g.stats.requested_nodes,
+            g.stats.nodes_before_dce,
+            g.stats.forward_ops,
+            g.stats.lowering_work,
+            psc_compiler::lower::MAX_LOWERING_WORK
         );
-        println!("  ops        forward {}, forward+adjoint {}", g.forward.op_count(), adj.op_count());
+        println!("  ops        forward {}, forward+adjoint {}", g.forward.op_count(), adj.program.op_count());
         println!(
             "  time       lower {:.2} ms, adjoint {:.2} ms",
             g.stats.lower_time.as_secs_f64() * 1e3,
@@ -194,11 +198,7 @@ fn plural(n: usize) -> &'static str {
     }
 }
 
-fn print_json(
-    output: &psc_compiler::CompileOutput,
-    adjoints: &[(psc_compiler::ir::Program, Duration)],
-    total: Duration,
-) {
+fn print_json(output: &psc_compiler::CompileOutput, adjoints: &[(Adjoint, Duration)], total: Duration) {
     let graphs: Vec<_> = output
         .graphs
         .iter()
@@ -225,9 +225,10 @@ fn print_json(
                 "params": params,
                 "ir": {
                     "requested_nodes": g.stats.requested_nodes,
+                    "lowering_work": g.stats.lowering_work,
                     "nodes_before_dce": g.stats.nodes_before_dce,
                     "forward_ops": g.forward.op_count(),
-                    "adjoint_ops": adj.op_count(),
+                    "adjoint_ops": adj.program.op_count(),
                 },
                 "lower_ms": g.stats.lower_time.as_secs_f64() * 1e3,
                 "adjoint_ms": adj_time.as_secs_f64() * 1e3,

@@ -8,14 +8,18 @@
 //! [`diag::Diagnostic`]).
 //!
 //! Pipeline: [`session::compile_files`] → [`module::ModuleSet`] (parse, imports) →
-//! [`check::check_all`] → [`lower::lower_graph`] → [`graph::CompiledGraph`] (forward
-//! [`ir::Program`]) → [`graph::CompiledGraph::adjoint`].
+//! [`check::check_all`] → [`lower::lower_graph`] → [`compiled::CompiledGraph`] (forward
+//! [`ir::Program`]) → [`compiled::CompiledGraph::adjoint`]. (`lower` is the AST → IR pass; the
+//! pest → AST step before it is the grammar crate's `ast_build`.)
+
+#![forbid(unsafe_code)]
 
 pub mod builtins;
+pub mod channel;
 pub mod check;
+pub mod compiled;
 pub mod diag;
 pub mod diff;
-pub mod graph;
 pub mod interp;
 pub mod ir;
 pub mod lower;
@@ -23,5 +27,7 @@ pub mod module;
 pub mod session;
 pub mod types;
 
-pub use graph::{CompiledGraph, GraphInfo, ParamInfo, ParamKind, CHANNELS};
+pub use channel::Channel;
+pub use compiled::{CompiledGraph, GraphInfo, ParamInfo, ParamKind};
+pub use diff::reverse::{Adjoint, AdjointLayout};
 pub use session::{compile_files, compile_text, find_sources, CompileOutput, Options};

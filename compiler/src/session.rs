@@ -2,12 +2,14 @@
 //! ones. Runs on a thread with a large stack so that no input, however deeply nested, can
 //! overflow it.
 
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
+use psc_grammar::ast::Span;
+
 use crate::check;
+use crate::compiled::CompiledGraph;
 use crate::diag::{Diagnostic, FileId, SourceMap};
-use crate::graph::CompiledGraph;
 use crate::lower;
 use crate::module::{ModuleId, ModuleSet};
 
@@ -101,14 +103,20 @@ fn compile(input: Input, options: &Options) -> CompileOutput {
     }
     let mut diagnostics = std::mem::take(&mut set.diagnostics);
     diagnostics.extend(check::check_all(&set));
+    // Two names for one file (`a.psg`, `./a.psg`, a link) load one module: compile it once.
+    let mut modules: Vec<ModuleId> = Vec::new();
+    for id in roots.iter().filter_map(|(_, id)| *id) {
+        if !modules.contains(&id) {
+            modules.push(id);
+        }
+    }
+    diagnostics.extend(graph_names_clash(&set, &modules));
     let bad_files: HashSet<FileId> = diagnostics.iter().filter(|d| d.is_error()).map(|d| d.file).collect();
     let mut graphs = Vec::new();
-    let mut files = Vec::new();
-    for (path, id) in roots {
-        let clean = id.is_some_and(|id| !depends_on_bad_file(&set, id, &bad_files));
-        let mut ok = clean;
-        if clean {
-            let id = id.expect("clean modules loaded");
+    let mut outcome: HashMap<ModuleId, bool> = HashMap::new();
+    for id in modules {
+        let mut ok = !depends_on_bad_file(&set, id, &bad_files);
+        if ok {
             for g in set.module(id).graphs() {
                 match lower::lower_graph(&set, id, g) {
                     Ok(compiled) => graphs.push(compiled),
@@ -119,9 +127,47 @@ fn compile(input: Input, options: &Options) -> CompileOutput {
                 }
             }
         }
-        files.push((path, ok));
+        outcome.insert(id, ok);
     }
+    let files = roots.into_iter().map(|(path, id)| (path, id.is_some_and(|id| outcome[&id]))).collect();
     CompileOutput { sources: std::mem::take(&mut set.sources), diagnostics, graphs, files }
+}
+
+/// Graph names are global to a compilation (`psc bake NAME`, the runtime library): a name that
+/// two files define is an error at the second definition, naming both files. (Two definitions
+/// in one file are reported when the file is loaded.)
+fn graph_names_clash(set: &ModuleSet, modules: &[ModuleId]) -> Vec<Diagnostic> {
+    let mut first: HashMap<&str, (ModuleId, Span)> = HashMap::new();
+    let mut out = Vec::new();
+    for &id in modules {
+        for g in set.module(id).graphs() {
+            let name = g.name.name.as_str();
+            match first.get(name) {
+                None => {
+                    first.insert(name, (id, g.name.span));
+                }
+                Some(&(other, _)) if other == id => {}
+                Some(&(other, span)) => {
+                    let (here, there) = (set.module(id).file, set.module(other).file);
+                    out.push(
+                        Diagnostic::error(
+                            here,
+                            g.name.span,
+                            format!(
+                                "graph `{name}` is defined in two files: {} and {}",
+                                set.sources.name(there),
+                                set.sources.name(here)
+                            ),
+                        )
+                        .with_label("second definition")
+                        .with_related(there, span, "first defined here")
+                        .with_hint("graph names must be unique across the files compiled together; rename one"),
+                    );
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Whether a module or anything it imports, transitively, has an error.
@@ -141,20 +187,9 @@ fn depends_on_bad_file(set: &ModuleSet, root: ModuleId, bad: &HashSet<FileId>) -
     false
 }
 
-/// Every `.psg` file under `dir`, recursively, sorted (so compilations and reports are stable).
+/// Every `.psg` file under `dir`, recursively, each real file once, sorted (so compilations
+/// and reports are stable): the one folder walk of every command ([`psc_base::walk`], which
+/// follows links without looping).
 pub fn find_sources(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
-    let mut out = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for entry in std::fs::read_dir(&d)? {
-            let path = entry?.path();
-            if path.is_dir() {
-                stack.push(path);
-            } else if path.extension().is_some_and(|e| e == "psg") {
-                out.push(path);
-            }
-        }
-    }
-    out.sort();
-    Ok(out)
+    psc_base::walk::files_with_extension(dir, "psg")
 }

@@ -13,9 +13,7 @@ fn library_root() -> PathBuf {
 #[test]
 fn every_ui_case_reports_errors_and_matches_its_snapshot() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/ui");
-    let mut cases: Vec<PathBuf> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
-    cases.retain(|p| p.extension().is_some_and(|e| e == "psg"));
-    cases.sort();
+    let cases = psc_compiler::find_sources(&dir).unwrap();
     assert!(cases.len() >= 10, "the ui cases are missing");
     for case in cases {
         let name = case.file_stem().unwrap().to_string_lossy().into_owned();

@@ -60,11 +60,15 @@ fn check_output(out: &CompileOutput) -> Result<(), String> {
         }
         for g in &out.graphs {
             g.forward.validate().map_err(|e| format!("graph {}: forward program invalid: {e}", g.info.name))?;
-            if g.forward.outputs.len() != psc_compiler::CHANNELS.len() {
+            if g.forward.outputs.len() != psc_compiler::Channel::COUNT {
                 return Err(format!("graph {}: {} outputs", g.info.name, g.forward.outputs.len()));
             }
             let adjoint = g.adjoint();
-            adjoint.validate().map_err(|e| format!("graph {}: adjoint program invalid: {e}", g.info.name))?;
+            adjoint.program.validate().map_err(|e| format!("graph {}: adjoint program invalid: {e}", g.info.name))?;
+            adjoint
+                .layout
+                .check(&g.forward, &adjoint.program)
+                .map_err(|e| format!("graph {}: adjoint layout: {e}", g.info.name))?;
             let params = g.info.default_params();
             if params.len() < g.forward.num_params {
                 return Err(format!(
@@ -75,7 +79,7 @@ fn check_output(out: &CompileOutput) -> Result<(), String> {
                 ));
             }
             eval_point(&g.forward, &params, 0.3, 0.7, &[]);
-            eval_point(&adjoint, &params, 0.3, 0.7, &[1.0; 9]);
+            eval_point(&adjoint.program, &params, 0.3, 0.7, &[1.0; 9]);
         }
     }
     Ok(())

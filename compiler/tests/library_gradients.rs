@@ -15,7 +15,7 @@
 
 mod support;
 
-use psc_compiler::CHANNELS;
+use psc_compiler::Channel;
 use support::*;
 
 /// KNOWN FAILURES, reported to the library owner: graphs that do not tile. A graph listed here
@@ -47,13 +47,13 @@ fn adjoint_gradients_of_every_library_graph_match_finite_differences() {
             continue;
         }
         let adjoint = g.adjoint();
-        adjoint.validate().unwrap_or_else(|e| panic!("{}: adjoint invalid: {e}", g.info.name));
+        adjoint.program.validate().unwrap_or_else(|e| panic!("{}: adjoint invalid: {e}", g.info.name));
         let slots = g.info.continuous_slots();
         let mut rng = Rng::for_name(&g.info.name, 1);
         let mut cov = GradCoverage::default();
         for params in param_vectors(&g.info, &mut rng, 2) {
             let (points, seeds) = random_points(&mut rng, points_per_vector);
-            let c = check_gradients(&g.info.name, &g.forward, &adjoint, &slots, &params, &points, &seeds);
+            let c = check_gradients(&g.info.name, &g.forward, &adjoint, &params, &points, &seeds);
             cov.add(&c);
         }
         let vars = slots.len() + 2;
@@ -143,7 +143,7 @@ fn every_library_graph_tiles() {
         }
     }
     eprintln!("{report}");
-    eprintln!("channels compared: {:?}", CHANNELS);
+    eprintln!("channels compared: {:?}", Channel::ALL.map(Channel::name));
     assert!(compared > 0);
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
@@ -153,30 +153,29 @@ fn every_library_graph_tiles() {
 #[test]
 fn a_slightly_wrong_adjoint_is_caught() {
     use psc_compiler::ir::{Builder, Output};
+    use psc_compiler::Adjoint;
     let graphs = compile_library();
     let (mut flagged, mut compared) = (0, 0);
     for name in ["red_brick", "plain_weave", "marble", "brushed_metal"] {
         let g = graphs.iter().find(|g| g.info.name == name).unwrap();
         let adjoint = g.adjoint();
-        let nch = CHANNELS.len();
-        let mut b = Builder::from_program(&adjoint);
+        let mut b = Builder::from_program(&adjoint.program);
         // x + 0.02 |x| + 0.01: never cancels, ten times the REL floor of the tolerance.
         let (k, c) = (b.constant(0.02), b.constant(0.01));
-        let mut outputs: Vec<Output> = adjoint.outputs.clone();
-        for o in &mut outputs[nch..] {
+        let mut outputs: Vec<Output> = adjoint.program.outputs.clone();
+        for o in &mut outputs[adjoint.layout.d_u()..] {
             let a = b.abs(o.node);
             let scaled = b.mul(k, a);
             let err = b.add(scaled, c);
             o.node = b.add(o.node, err);
         }
-        let wrong = b.finish(outputs);
-        let slots = g.info.continuous_slots();
+        let wrong = Adjoint { program: b.finish(outputs), layout: adjoint.layout.clone() };
         let mut rng = Rng::for_name(name, 9);
         let params = random_params(&g.info, &mut rng);
         let (points, seeds) = random_points(&mut rng, 4);
-        let good = check_gradients(name, &g.forward, &adjoint, &slots, &params, &points, &seeds);
+        let good = check_gradients(name, &g.forward, &adjoint, &params, &points, &seeds);
         assert!(good.failures.is_empty(), "{:?}", good.failures);
-        let bad = check_gradients(name, &g.forward, &wrong, &slots, &params, &points, &seeds);
+        let bad = check_gradients(name, &g.forward, &wrong, &params, &points, &seeds);
         compared += good.compared;
         flagged += bad.failures.len();
     }

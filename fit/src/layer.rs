@@ -17,6 +17,7 @@
 //! sample's texture position; the latter flows into φ.
 
 use glam::Vec3;
+use psc_compiler::Channel;
 use psc_render::image_io::linear_to_srgb;
 use psc_runtime::kernel::Gradients;
 use psc_runtime::library::Material;
@@ -26,10 +27,11 @@ use crate::error::FitError;
 use crate::shading::LightSample;
 use crate::uvmap::{normal_to_mesh, UvTransform};
 
-/// Forward channel columns the layer reads (`psc_compiler::CHANNELS` order).
-const ALBEDO: usize = 0;
-const NORMAL: usize = 4;
-const CHANNEL_COUNT: usize = 9;
+/// Forward channel columns the layer reads.
+const ALBEDO: usize = Channel::AlbedoR.index();
+const NORMAL: usize = Channel::NormalX.index();
+const CHANNEL_COUNT: usize = Channel::COUNT;
+const _: () = assert!(Channel::AlbedoB.index() == ALBEDO + 2 && Channel::NormalZ.index() == NORMAL + 2);
 
 /// One pixel of a part's crop that is fitted.
 #[derive(Clone, Debug)]
@@ -119,9 +121,9 @@ pub struct Workspace {
 }
 
 impl Workspace {
-    /// The mean of forward channel `channel` over every sample of the last render.
-    pub fn channel_mean(&self, channel: usize) -> f32 {
-        let col = &self.columns[channel];
+    /// The mean of a forward channel over every sample of the last render.
+    pub fn channel_mean(&self, channel: Channel) -> f32 {
+        let col = &self.columns[channel.index()];
         (col.iter().map(|&x| f64::from(x)).sum::<f64>() / col.len().max(1) as f64) as f32
     }
 }

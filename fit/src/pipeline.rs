@@ -42,6 +42,11 @@ pub struct FitOptions {
     pub min_pixels: usize,
     pub loss: LossWeights,
     pub features: FeatureConfig,
+    /// Rounds of: lights re-estimated under the fitted materials (unless given), light grids
+    /// re-rendered, albedo scale and roughness re-fitted.
+    pub refit_rounds: usize,
+    /// Most iterations of a re-fit.
+    pub refit_iterations: u32,
 }
 
 impl Default for FitOptions {
@@ -57,6 +62,8 @@ impl Default for FitOptions {
             min_pixels: 500,
             loss: LossWeights::default(),
             features: FeatureConfig::default(),
+            refit_rounds: 1,
+            refit_iterations: 150,
         }
     }
 }
@@ -126,6 +133,8 @@ pub struct PartResult {
     /// The selection's best graphs with their votes (empty when not selected).
     pub top: Vec<Ranked>,
     pub view: Option<String>,
+    /// Index of the chosen view in the scene's views.
+    pub view_index: Option<usize>,
     pub view_scores: Vec<ViewScore>,
     pub warp: Option<Warp>,
     pub iou: Option<(f32, f32)>,
@@ -278,7 +287,37 @@ pub fn fit_scene(
         progress.advance(1);
     }
     lap("fit parts", &mut timings);
-    Ok(FitResult { parts, slot_names: renderer.slot_names().to_vec(), radiance, light_source, timings })
+
+    let mut result = FitResult { parts, slot_names: renderer.slot_names().to_vec(), radiance, light_source, timings };
+    for round in 0..options.refit_rounds {
+        renderer.set_materials(result.bindings(library)?)?;
+        if radiances.is_none() {
+            progress.stage("re-estimate lights", views.len() as u64);
+            let renders = lighting::unit_renders(&renderer, &views, options.seed ^ 0x5eed_0001)?;
+            let (common, pixels) = lighting::common_radiance(&views, &renders)?;
+            progress.note(&format!(
+                "round {}: lights under the fitted materials: one common radiance ({:.3}, {:.3}, {:.3}) from {pixels} pixels",
+                round + 1,
+                common[0],
+                common[1],
+                common[2]
+            ));
+            result.radiance = vec![common; n_slots];
+            result.light_source =
+                format!("estimated from the photos under the fitted materials (one common radiance, {pixels} pixels)");
+        }
+        progress.stage("light grids", views.len() as u64);
+        let grids = lighting::view_grids(&renderer, &views, options.grid, options.seed ^ 0x5eed_0002)?;
+        let shading: Vec<ShadingGrid> =
+            grids.iter().zip(&views).map(|(g, o)| ShadingGrid::new(g, &result.radiance, o.camera.position)).collect();
+        progress.stage("re-fit albedo scale and roughness", n_parts as u64);
+        for part in result.parts.iter_mut() {
+            refit_appearance(library, &homogeneous, &renderer, &views, &aligned, &shading, part, options)?;
+            progress.advance(1);
+        }
+        lap(&format!("re-fit round {}", round + 1), &mut result.timings);
+    }
+    Ok(result)
 }
 
 fn summary(name: &str, r: &PartResult) -> String {
@@ -320,6 +359,7 @@ fn fit_one_part(
         roughness_scale: 1.0,
         top: Vec::new(),
         view: None,
+        view_index: None,
         view_scores: Vec::new(),
         warp: None,
         iou: None,
@@ -354,6 +394,7 @@ fn fit_one_part(
     let (chosen, search_view, colour) = candidates.swap_remove(best);
     let obs = &views[chosen.view];
     result.view = Some(obs.name.clone());
+    result.view_index = Some(chosen.view);
     result.view_scores = scores;
     result.warp = Some(chosen.warp);
     result.iou = Some((chosen.iou_initial, chosen.iou));
@@ -390,6 +431,9 @@ fn fit_one_part(
         }
     };
     result.timings.selection = started.elapsed().as_secs_f64();
+    if let (Some(dir), Some(sel)) = (std::env::var_os("PSC_FIT_DUMP"), &selection) {
+        debug_dump(std::path::Path::new(&dir), &name, homogeneous, library, &search_view, sel, colour, options)?;
+    }
     let started = Instant::now();
     let graph_name = match (forced, &selection) {
         (Some(g), _) => g.clone(),
@@ -417,7 +461,7 @@ fn fit_one_part(
     let fit = fit_part(&problem, &starts, &options.fit, Free::ALL)?;
     // The output keeps the graph's roughness map, scaled to the fitted part-wide value.
     fit_view.render(material, &fit.state, options.fit.sampling, &mut ws)?;
-    let map_mean = ws.channel_mean(3);
+    let map_mean = ws.channel_mean(psc_compiler::Channel::Roughness);
     result.roughness_scale = if map_mean > 1e-4 { (fit.state.roughness / map_mean).clamp(0.0, 50.0) } else { 1.0 };
     result.status = if forced.is_some() { PartStatus::Forced } else { PartStatus::Fitted };
     result.graph = graph_name;
@@ -429,6 +473,56 @@ fn fit_one_part(
     result.uv_candidates = fit.uv_candidates;
     result.timings.fit = started.elapsed().as_secs_f64();
     Ok(result)
+}
+
+/// Re-fits a part's albedo scale and roughness under new lighting (graph, parameters and UV
+/// transform frozen), as PhotoScene's re-fit; homogeneous parts get their colour anew.
+#[allow(clippy::too_many_arguments)]
+fn refit_appearance(
+    library: &Library,
+    homogeneous: &psc_runtime::library::Material,
+    renderer: &Renderer,
+    views: &[ViewObservation],
+    aligned: &[Vec<AlignedPart>],
+    shading: &[ShadingGrid],
+    part: &mut PartResult,
+    options: &FitOptions,
+) -> Result<(), FitError> {
+    let Some(v) = part.view_index else { return Ok(()) };
+    let Some(a) = aligned[v].iter().find(|a| a.part as usize == part_index(renderer, &part.name)) else {
+        return Ok(());
+    };
+    let obs = &views[v];
+    let mut ws = Workspace::default();
+    if part.status == PartStatus::Homogeneous {
+        if let Some(view) = part_view(obs, a, &renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, 1.0) {
+            let colour = flat_colour(homogeneous, &view, &mut ws)?;
+            part.state = flat_state(homogeneous, colour, part.state.roughness);
+        }
+        return Ok(());
+    }
+    let Some(fit_view) = part_view(obs, a, &renderer.geometry(), &obs.camera, &shading[v], options.fit_pixels, 1.0) else {
+        return Ok(());
+    };
+    let material = library.get(&part.graph).expect("fitted graphs come from the library");
+    let mut scratch = Scratch::default();
+    let fit_loss = PartLoss::new(&fit_view, options.loss, &options.features, &mut scratch)?;
+    let problem =
+        Problem { material, fit_view: &fit_view, fit_loss: &fit_loss, search_view: &fit_view, search_loss: &fit_loss };
+    let settings = FitSettings { max_iterations: options.refit_iterations, starts: 1, start_iterations: 0, ..options.fit };
+    let fit = fit_part(&problem, std::slice::from_ref(&part.state), &settings, Free::APPEARANCE)?;
+    part.state = fit.state;
+    part.loss = fit.loss;
+    part.history.extend(fit.history);
+    part.iterations += fit.iterations;
+    fit_view.render(material, &part.state, options.fit.sampling, &mut ws)?;
+    let map_mean = ws.channel_mean(psc_compiler::Channel::Roughness);
+    part.roughness_scale = if map_mean > 1e-4 { (part.state.roughness / map_mean).clamp(0.0, 50.0) } else { 1.0 };
+    Ok(())
+}
+
+fn part_index(renderer: &Renderer, name: &str) -> usize {
+    renderer.part_names().iter().position(|p| p == name).expect("parts come from the scene")
 }
 
 /// The homogeneous graph at linear colour `albedo` (values above 1 stay in the albedo scale).
@@ -461,4 +555,43 @@ fn flat_colour(
     let white = flat_state(homogeneous, [1.0; 3], DEFAULT_ROUGHNESS);
     view.render(homogeneous, &white, Sampling { density: 0.0, max_per_axis: 1 }, ws)?;
     Ok(view.matched_albedo_scale(&white, ws))
+}
+
+/// Debugging aid (`PSC_FIT_DUMP=dir`): the search view's photo, a homogeneous render at the
+/// part's colour and the best exemplar, side by side.
+#[allow(clippy::too_many_arguments)]
+fn debug_dump(
+    dir: &std::path::Path,
+    name: &str,
+    homogeneous: &psc_runtime::library::Material,
+    library: &Library,
+    view: &PartView,
+    selection: &crate::select::Selection,
+    colour: [f32; 3],
+    options: &FitOptions,
+) -> Result<(), FitError> {
+    let mut ws = Workspace::default();
+    let (w, h) = (view.width, view.height);
+    let mut out = vec![[0.0f32; 3]; 3 * w * h];
+    let mut put = |k: usize, img: &[[f32; 3]]| {
+        for y in 0..h {
+            for x in 0..w {
+                out[y * 3 * w + k * w + x] = img[y * w + x].map(psc_render::image_io::srgb_to_linear);
+            }
+        }
+    };
+    put(0, &view.target);
+    view.render(
+        homogeneous,
+        &flat_state(homogeneous, colour, DEFAULT_ROUGHNESS),
+        options.fit.search_sampling,
+        &mut ws,
+    )?;
+    put(1, &ws.image);
+    let best = &selection.exemplars[0];
+    view.render(&library.materials[best.graph], &best.state, options.fit.search_sampling, &mut ws)?;
+    put(2, &ws.image);
+    std::fs::create_dir_all(dir).map_err(|e| FitError::Output(e.to_string()))?;
+    psc_render::image_io::write_rgb(&dir.join(format!("{name}.png")), 3 * w, h, &out)?;
+    Ok(())
 }

@@ -142,6 +142,14 @@ pub fn select(
             best_loss: exemplars.iter().find(|e| e.graph == g).map_or(f32::INFINITY, |e| e.loss),
         })
         .collect();
+    if std::env::var_os("PSC_FIT_DEBUG").is_some() {
+        let mut seen = std::collections::BTreeSet::new();
+        for e in &exemplars {
+            if seen.insert(e.graph) {
+                eprintln!("  {:<24} best exemplar loss {:.4}", library.materials[e.graph].name(), e.loss);
+            }
+        }
+    }
     ranking.sort_by(|a, b| {
         b.votes.total_cmp(&a.votes).then(a.best_loss.total_cmp(&b.best_loss)).then(a.graph.cmp(&b.graph))
     });

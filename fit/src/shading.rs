@@ -15,11 +15,12 @@
 //! bins are far wider than a glossy lobe anyway. Roughness is part-wide while fitting, so
 //! `S` is tabulated over [`ROUGHNESS_STEPS`] roughness values and interpolated linearly.
 //!
-//! `E(n)` is evaluated without touching most bins: a bin of polar row `i` stays above the
-//! horizon of every normal tilted by less than `90° − (i+1)·11.25°`, so with the running sums
-//! `C_k = Σ_{rows < k} m_b ⊗ L_b`, `E(n) = C_k n + Σ_{rows ≥ k} max(n·m_b, 0) L_b` with `k`
-//! the number of rows that are safe for `n`'s tilt. An unperturbed normal costs nine
-//! multiply-adds.
+//! `E(n)` is evaluated without touching most bins: with the full linear sum
+//! `C = Σ_b m_b ⊗ L_b`, `E(n) = C n − Σ_{b: n·m_b < 0} (n·m_b) L_b`, and the bins below a tilted
+//! normal's horizon form, in each polar row, a short arc of azimuths around the direction
+//! opposite the tilt, fewer the higher the row. The arcs are walked outward from their centre
+//! from the horizon row upwards until a row has none. An unperturbed normal costs nine
+//! multiply-adds, a normal tilted by 30° about a dozen bins.
 
 use std::f32::consts::PI;
 use std::sync::OnceLock;
@@ -47,8 +48,8 @@ struct BinGeometry {
     centre: [Vec3; BINS],
     /// Solid angle.
     omega: [f32; BINS],
-    /// Row `i` is safe for a unit normal n when `n.z >= safe_z[i]` (= sin((i+1)·Δθ)).
-    safe_z: [f32; ROWS],
+    /// (cos, sin) of each column's central azimuth.
+    azimuth: [[f32; 2]; COLS],
 }
 
 fn bins() -> &'static BinGeometry {
@@ -60,7 +61,10 @@ fn bins() -> &'static BinGeometry {
             moment: [Vec3::ZERO; BINS],
             centre: [Vec3::ZERO; BINS],
             omega: [0.0; BINS],
-            safe_z: [0.0; ROWS],
+            azimuth: std::array::from_fn(|j| {
+                let phi = (j as f32 + 0.5) * dp;
+                [phi.cos(), phi.sin()]
+            }),
         };
         for i in 0..ROWS {
             let (t0, t1) = (i as f64 * dt as f64, (i + 1) as f64 * dt as f64);
@@ -78,7 +82,6 @@ fn bins() -> &'static BinGeometry {
                 g.centre[b] = bin_direction(i, j, [0.5, 0.5]);
                 g.omega[b] = bin_solid_angle(i);
             }
-            g.safe_z[i] = (((i + 1) as f32) * dt).sin();
         }
         g
     })
@@ -87,8 +90,8 @@ fn bins() -> &'static BinGeometry {
 /// The lighting of one grid cell or pixel, ready for shading.
 #[derive(Clone, Debug)]
 pub struct LightSample {
-    /// `C_k` for k = 0..=ROWS: [k][channel] as a vector over the normal's axes.
-    cumulative: [[Vec3; 3]; ROWS + 1],
+    /// `C = Σ_b m_b ⊗ L_b`: per channel, a vector over the normal's axes.
+    linear: [Vec3; 3],
     /// `L_b` per bin, RGB.
     radiance: Box<[[f32; 3]; BINS]>,
     /// `S(r_j)` per table roughness, RGB.
@@ -100,17 +103,10 @@ impl LightSample {
     /// direction to the viewer in the grid's local frame.
     pub fn new(radiance: &[[f32; 3]; BINS], wo_local: Vec3) -> LightSample {
         let g = bins();
-        let mut cumulative = [[Vec3::ZERO; 3]; ROWS + 1];
-        for i in 0..ROWS {
-            let mut row = [Vec3::ZERO; 3];
-            for j in 0..COLS {
-                let b = i * COLS + j;
-                for (c, r) in row.iter_mut().enumerate() {
-                    *r += g.moment[b] * radiance[b][c];
-                }
-            }
-            for c in 0..3 {
-                cumulative[i + 1][c] = cumulative[i][c] + row[c];
+        let mut linear = [Vec3::ZERO; 3];
+        for b in 0..BINS {
+            for (c, l) in linear.iter_mut().enumerate() {
+                *l += g.moment[b] * radiance[b][c];
             }
         }
         let mut specular = [[0.0f32; 3]; ROUGHNESS_STEPS];
@@ -126,22 +122,20 @@ impl LightSample {
                 }
             }
         }
-        LightSample { cumulative, radiance: Box::new(*radiance), specular }
+        LightSample { linear, radiance: Box::new(*radiance), specular }
     }
 
     /// Σ weights[i] · samples[i] (bilinear interpolation between grid cells; everything here
     /// is linear in the radiance).
     pub fn blend(samples: &[&LightSample], weights: &[f32]) -> LightSample {
         let mut out = LightSample {
-            cumulative: [[Vec3::ZERO; 3]; ROWS + 1],
+            linear: [Vec3::ZERO; 3],
             radiance: Box::new([[0.0; 3]; BINS]),
             specular: [[0.0; 3]; ROUGHNESS_STEPS],
         };
         for (s, &w) in samples.iter().zip(weights) {
-            for k in 0..=ROWS {
-                for c in 0..3 {
-                    out.cumulative[k][c] += s.cumulative[k][c] * w;
-                }
+            for c in 0..3 {
+                out.linear[c] += s.linear[c] * w;
             }
             for (o, r) in out.radiance.iter_mut().zip(s.radiance.iter()) {
                 for c in 0..3 {
@@ -160,44 +154,29 @@ impl LightSample {
     /// `E(n)` per channel for a unit normal `n` in the local frame.
     #[inline]
     pub fn irradiance(&self, n: Vec3) -> [f32; 3] {
-        let k = safe_rows(n.z);
-        let mut e = [self.cumulative[k][0].dot(n), self.cumulative[k][1].dot(n), self.cumulative[k][2].dot(n)];
-        if k < ROWS {
-            let g = bins();
-            for b in k * COLS..BINS {
-                let c = n.dot(g.moment[b]);
-                if c > 0.0 {
-                    let l = &self.radiance[b];
-                    e[0] += c * l[0];
-                    e[1] += c * l[1];
-                    e[2] += c * l[2];
-                }
-            }
-        }
+        let mut e = [self.linear[0].dot(n), self.linear[1].dot(n), self.linear[2].dot(n)];
+        for_clipped_bins(n, |b, c| {
+            let l = &self.radiance[b];
+            e[0] -= c * l[0];
+            e[1] -= c * l[1];
+            e[2] -= c * l[2];
+        });
         e
     }
 
     /// `E(n)` and `Σ_c g_c ∂E_c/∂n` for channel weights `g` (the adjoint of [`Self::irradiance`]).
     #[inline]
     pub fn irradiance_grad(&self, n: Vec3, g: [f32; 3]) -> ([f32; 3], Vec3) {
-        let k = safe_rows(n.z);
-        let cum = &self.cumulative[k];
-        let mut e = [cum[0].dot(n), cum[1].dot(n), cum[2].dot(n)];
-        let mut d = cum[0] * g[0] + cum[1] * g[1] + cum[2] * g[2];
-        if k < ROWS {
-            let geo = bins();
-            for b in k * COLS..BINS {
-                let m = geo.moment[b];
-                let c = n.dot(m);
-                if c > 0.0 {
-                    let l = &self.radiance[b];
-                    e[0] += c * l[0];
-                    e[1] += c * l[1];
-                    e[2] += c * l[2];
-                    d += m * (g[0] * l[0] + g[1] * l[1] + g[2] * l[2]);
-                }
-            }
-        }
+        let mut e = [self.linear[0].dot(n), self.linear[1].dot(n), self.linear[2].dot(n)];
+        let mut d = self.linear[0] * g[0] + self.linear[1] * g[1] + self.linear[2] * g[2];
+        let geo = bins();
+        for_clipped_bins(n, |b, c| {
+            let l = &self.radiance[b];
+            e[0] -= c * l[0];
+            e[1] -= c * l[1];
+            e[2] -= c * l[2];
+            d -= geo.moment[b] * (g[0] * l[0] + g[1] * l[1] + g[2] * l[2]);
+        });
         (e, d)
     }
 
@@ -215,15 +194,58 @@ impl LightSample {
     }
 }
 
-/// Number of polar rows whose bins all stay above the horizon of a unit normal with this z.
+/// Calls `f(bin, n·m_b)` for every bin with `n·m_b < 0` (below the horizon of `n`), walking,
+/// from the horizon row upwards, the arc of azimuths around the direction opposite the tilt
+/// until a row has no such bin (rows nearer the pole have fewer: their moments point higher).
 #[inline]
-fn safe_rows(nz: f32) -> usize {
-    let s = &bins().safe_z;
-    let mut k = 0;
-    while k < ROWS && nz >= s[k] {
-        k += 1;
+fn for_clipped_bins(n: Vec3, mut f: impl FnMut(usize, f32)) {
+    if n.x == 0.0 && n.y == 0.0 {
+        return;
     }
-    k
+    let g = bins();
+    // The column whose centre azimuth is nearest the direction opposite the normal's tilt.
+    let mut centre = 0;
+    let mut lowest = f32::INFINITY;
+    for (j, a) in g.azimuth.iter().enumerate() {
+        let d = n.x * a[0] + n.y * a[1];
+        if d < lowest {
+            (lowest, centre) = (d, j);
+        }
+    }
+    for i in (0..ROWS).rev() {
+        let row = i * COLS;
+        let c = n.dot(g.moment[row + centre]);
+        if c >= 0.0 {
+            // The neighbours of the centre column may still dip below when the opposite
+            // azimuth falls between two centres.
+            let mut any = false;
+            for j in [(centre + 1) % COLS, (centre + COLS - 1) % COLS] {
+                let c = n.dot(g.moment[row + j]);
+                if c < 0.0 {
+                    f(row + j, c);
+                    any = true;
+                }
+            }
+            if !any {
+                return;
+            }
+            continue;
+        }
+        f(row + centre, c);
+        for step in [1usize, COLS - 1] {
+            let mut j = (centre + step) % COLS;
+            let mut walked = 1;
+            while walked < COLS / 2 {
+                let c = n.dot(g.moment[row + j]);
+                if c >= 0.0 {
+                    break;
+                }
+                f(row + j, c);
+                j = (j + step) % COLS;
+                walked += 1;
+            }
+        }
+    }
 }
 
 /// The exact sum over every bin, for tests: `E(n) = Σ_b max(n·m_b, 0) L_b`.

@@ -2,10 +2,11 @@
 //! working resolution, with each fit pixel's surface point (uv, footprint, frame) traced at its
 //! warped position on the coarse model and its lighting interpolated from the view's grid.
 //!
-//! Large parts are fitted at a reduced resolution: a fit pixel then averages `factor`×`factor`
-//! photo pixels (in linear values, as a camera would) and its footprint grows accordingly, so
-//! the shading layer supersamples it more; the statistics and features of the two sides stay
-//! comparable.
+//! Parts with more usable pixels than the budget are fitted on a window of the photo at full
+//! resolution rather than on the whole part at a reduced one: texture is matched pixel for
+//! pixel of the photo (a downsampled crop would average fine patterns away, and a fit pixel
+//! covering many photo pixels would need many samples). The window has the aspect of the part's
+//! bounding box and is placed where it holds the most usable pixels.
 
 use psc_render::camera::Camera;
 use psc_render::geometry::SceneGeometry;
@@ -28,16 +29,17 @@ pub fn part_view(
     exposure: f32,
 ) -> Option<PartView> {
     let w = obs.photo.width;
-    let usable = &aligned.usable;
+    let usable = window(&aligned.usable, w, obs.photo.height, max_pixels);
     if usable.is_empty() {
         return None;
     }
+    let usable = &usable;
     let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
     for &i in usable {
         let (x, y) = (i as usize % w, i as usize / w);
         (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
     }
-    let factor = ((usable.len() as f64 / max_pixels.max(1) as f64).sqrt().ceil() as usize).max(1);
+    let factor = 1;
     let (cw, ch) = ((x1 - x0 + 1).div_ceil(factor), (y1 - y0 + 1).div_ceil(factor));
     // Per fit pixel: usable photo pixels, their linear sum and their centroid.
     let mut count = vec![0u32; cw * ch];
@@ -88,4 +90,58 @@ pub fn part_view(
         return None;
     }
     Some(PartView { width: cw, height: ch, origin: [x0, y0], factor, pixels, weight, target, target_linear, exposure })
+}
+
+/// The usable pixels inside the window chosen for a budget of `max_pixels` (all of them when
+/// they fit): a window with the aspect of their bounding box, scaled to hold about the budget,
+/// at the position (on a 2-pixel lattice) holding the most of them.
+fn window(usable: &[u32], w: usize, h: usize, max_pixels: usize) -> Vec<u32> {
+    if usable.len() <= max_pixels.max(1) {
+        return usable.to_vec();
+    }
+    let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+    for &i in usable {
+        let (x, y) = (i as usize % w, i as usize / w);
+        (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+    }
+    let (bw, bh) = (x1 - x0 + 1, y1 - y0 + 1);
+    let s = (max_pixels as f64 / usable.len() as f64).sqrt();
+    let (ww, wh) = (((bw as f64 * s).ceil() as usize).clamp(1, bw), ((bh as f64 * s).ceil() as usize).clamp(1, bh));
+    // Integral image of the usable mask over the bounding box.
+    let mut integral = vec![0u32; (bw + 1) * (bh + 1)];
+    let mut mask = vec![0u32; bw * bh];
+    for &i in usable {
+        let (x, y) = (i as usize % w, i as usize / w);
+        mask[(y - y0) * bw + (x - x0)] = 1;
+    }
+    for y in 0..bh {
+        let mut row = 0;
+        for x in 0..bw {
+            row += mask[y * bw + x];
+            integral[(y + 1) * (bw + 1) + x + 1] = integral[y * (bw + 1) + x + 1] + row;
+        }
+    }
+    let count = |x: usize, y: usize| {
+        let at = |a: usize, b: usize| integral[b * (bw + 1) + a];
+        at(x + ww, y + wh) + at(x, y) - at(x + ww, y) - at(x, y + wh)
+    };
+    let mut best = (0u32, 0usize, 0usize);
+    for y in (0..=bh - wh).step_by(2) {
+        for x in (0..=bw - ww).step_by(2) {
+            let c = count(x, y);
+            if c > best.0 {
+                best = (c, x, y);
+            }
+        }
+    }
+    let (_, bx, by) = best;
+    let _ = h;
+    usable
+        .iter()
+        .copied()
+        .filter(|&i| {
+            let (x, y) = (i as usize % w - x0, i as usize / w - y0);
+            x >= bx && x < bx + ww && y >= by && y < by + wh
+        })
+        .collect()
 }

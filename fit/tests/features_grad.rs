@@ -1,6 +1,6 @@
 //! The feature loss's gradient against central finite differences, on random images and
-//! region shapes (full, soft-edged, thin, ring-shaped), with and without colour and
-//! working-resolution reduction.
+//! region shapes (full, soft-edged, thin, ring-shaped), with and without colour, the noise
+//! model's dead zone and working-resolution reduction.
 
 mod features_support;
 
@@ -25,6 +25,11 @@ fn cases() -> Vec<Case> {
             name: "disc, working resolution /2",
             region: shape("disc", 70, 66),
             config: FeatureConfig { max_pixels: Some(1300), ..base.clone() },
+        },
+        Case {
+            name: "rect, no noise model",
+            region: shape("rect", 40, 34),
+            config: FeatureConfig { photo_noise: false, ..base.clone() },
         },
         Case {
             name: "rect, achromatic only, 4 orientations",
@@ -170,6 +175,10 @@ fn bad_input_is_an_error() {
     let target = loss.describe(&vec![[0.5; 3]; 900], &mut s).unwrap();
     let other = FeatureLoss::new(&config, &shape("disc", 30, 30)).unwrap();
     assert!(other.loss(&vec![[0.5; 3]; 900], &target, &mut s).is_err(), "descriptor of another region");
+    let mut shifted = shape("rect", 30, 30);
+    shifted.weight[0] = 0.0;
+    let same_size = FeatureLoss::new(&config, &shifted).unwrap();
+    assert!(same_size.loss(&vec![[0.5; 3]; 900], &target, &mut s).is_err(), "region of the same size, other mask");
     let mut grad = vec![[0.0; 3]; 899];
     assert!(loss.loss_and_grad(&vec![[0.5; 3]; 900], &target, &mut s, &mut grad).is_err());
 
@@ -180,4 +189,26 @@ fn bad_input_is_an_error() {
     let mut g = vec![[1.0; 3]; 36];
     assert_eq!(tiny.loss_and_grad(&vec![[0.9; 3]; 36], &t, &mut s, &mut g).unwrap(), 0.0);
     assert!(g.iter().all(|v| *v == [0.0; 3]));
+}
+
+#[test]
+fn shared_across_threads_gives_the_sequential_bits() {
+    fn assert_send_sync<T: Send + Sync>() {}
+    assert_send_sync::<FeatureLoss>();
+    assert_send_sync::<psc_fit::features::Descriptor>();
+    use rayon::prelude::*;
+    let mut rng = Rng(5);
+    let region = shape("disc", 64, 64);
+    let loss = FeatureLoss::new(&FeatureConfig::default(), &region).unwrap();
+    let target = loss.describe(&random_pattern(64, 64, &mut rng), &mut Scratch::default()).unwrap();
+    let images: Vec<Vec<[f32; 3]>> = (0..16).map(|_| random_pattern(64, 64, &mut rng)).collect();
+    let run = |img: &Vec<[f32; 3]>, s: &mut Scratch| {
+        let mut g = vec![[0.0; 3]; img.len()];
+        let l = loss.loss_and_grad(img, &target, s, &mut g).unwrap();
+        (l.to_bits(), g)
+    };
+    let mut s = Scratch::default();
+    let sequential: Vec<_> = images.iter().map(|img| run(img, &mut s)).collect();
+    let parallel: Vec<_> = images.par_iter().map_init(Scratch::default, |s, img| run(img, s)).collect();
+    assert_eq!(sequential, parallel);
 }

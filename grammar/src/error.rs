@@ -1,4 +1,4 @@
-//! The one error type of the parser.
+//! The one error type of the parser, and where a byte offset is as line and column.
 
 use crate::ast::Span;
 use std::fmt;
@@ -30,21 +30,15 @@ impl ParseError {
     }
 }
 
-/// 1-based line and column (counted in chars) of byte offset `at` in `src`.
+/// 1-based line and column (counted in chars) of byte offset `at` in `src`: the one copy every
+/// crate uses (the compiler's diagnostics and the CLI's JSON output included). An offset past
+/// the end or inside a character counts as the character boundary before it.
 pub fn line_col(src: &str, at: usize) -> (usize, usize) {
-    let at = floor_char_boundary(src, at.min(src.len()));
-    let before = &src[..at];
+    let before = &src[..src.floor_char_boundary(at)];
     let line = before.matches('\n').count() + 1;
     let line_start = before.rfind('\n').map_or(0, |i| i + 1);
     let col = before[line_start..].chars().count() + 1;
     (line, col)
-}
-
-fn floor_char_boundary(src: &str, mut at: usize) -> usize {
-    while !src.is_char_boundary(at) {
-        at -= 1;
-    }
-    at
 }
 
 impl fmt::Display for ParseError {
@@ -58,3 +52,21 @@ impl fmt::Display for ParseError {
 }
 
 impl std::error::Error for ParseError {}
+
+#[cfg(test)]
+mod tests {
+    use super::line_col;
+
+    #[test]
+    fn line_col_counts_chars_and_clamps() {
+        let src = "ab\né x\n";
+        assert_eq!(line_col(src, 0), (1, 1));
+        assert_eq!(line_col(src, 3), (2, 1));
+        // `x` is byte 6 but the third char of line 2 (é is two bytes).
+        assert_eq!(line_col(src, 6), (2, 3));
+        // Inside `é`: the boundary before it.
+        assert_eq!(line_col(src, 4), (2, 1));
+        // Past the end: the end.
+        assert_eq!(line_col(src, 99), (3, 1));
+    }
+}

@@ -1,8 +1,8 @@
 //! The entry point: source text in, [`File`] or every error we can find out.
 
 use crate::ast::File;
+use crate::ast_build::AstBuilder;
 use crate::error::ParseError;
-use crate::lower::Lowerer;
 use crate::scan::scan;
 use crate::syntax::{translate, PsgParser, Rule};
 use pest::Parser;
@@ -30,10 +30,10 @@ pub fn parse(src: &str) -> Result<File, Vec<ParseError>> {
         let chunk = &src[chunk_start..];
         match PsgParser::parse(Rule::file, chunk) {
             Ok(mut pairs) => {
-                let lowerer = Lowerer::new(src, chunk_start, &scanned.doc_lines);
+                let builder = AstBuilder::new(src, chunk_start, &scanned.doc_lines);
                 let file = pairs.next().expect("pest: `file` yields one pair");
-                items.extend(lowerer.file(file));
-                errors.extend(lowerer.into_errors());
+                items.extend(builder.file(file));
+                errors.extend(builder.into_errors());
                 break;
             }
             Err(error) => {

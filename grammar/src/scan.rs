@@ -151,7 +151,7 @@ impl Scanner<'_> {
         // `////…` is a plain comment, as in Rust; a `///` after code on the same line
         // documents nothing.
         if self.at_line_start && text.starts_with("///") && !text.starts_with("////") {
-            // Trailing blanks are trimmed so that the lowering can find the line by
+            // Trailing blanks are trimmed so that the AST builder can find the line by
             // its end, walking back over blank space from an item.
             self.out.doc_lines.push(Span::new(start, start + text.trim_end_matches([' ', '\t', '\r']).len()));
         }

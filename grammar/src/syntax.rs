@@ -216,6 +216,9 @@ fn shift(span: Span, base: usize) -> Span {
 
 const MULTI_CHAR_PUNCTUATION: [&str; 12] = ["->", "..", "==", "!=", "<=", ">=", "&&", "||", "+=", "-=", "*=", "/="];
 
+/// Longest token quoted whole in a message; longer ones are cut with an ellipsis.
+const MAX_QUOTED_TOKEN: usize = 48;
+
 /// The token starting at `at` (a char boundary): its span and how to show it.
 pub(crate) fn token_at(src: &str, at: usize) -> (Span, String) {
     let rest = &src[at..];
@@ -245,6 +248,9 @@ pub(crate) fn token_at(src: &str, at: usize) -> (Span, String) {
         "a string".to_owned()
     } else if first.is_whitespace() || first.is_control() {
         format!("character U+{:04X}", first as u32)
+    } else if text.len() > MAX_QUOTED_TOKEN {
+        // A huge word (generated or hostile input) is named, not echoed: its span shows where.
+        format!("`{}…`", &text[..text.floor_char_boundary(MAX_QUOTED_TOKEN)])
     } else {
         format!("`{text}`")
     };

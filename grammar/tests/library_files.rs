@@ -5,28 +5,13 @@
 
 mod support;
 
-use std::path::{Path, PathBuf};
-
-fn psg_files(dir: &Path, out: &mut Vec<PathBuf>) {
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return;
-    };
-    for entry in entries.flatten() {
-        let path = entry.path();
-        if path.is_dir() {
-            psg_files(&path, out);
-        } else if path.extension().is_some_and(|e| e == "psg") {
-            out.push(path);
-        }
-    }
-}
+use std::path::Path;
 
 #[test]
 fn every_library_file_parses() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../graphs");
-    let mut files = Vec::new();
-    psg_files(&root, &mut files);
-    files.sort();
+    let files = psc_base::walk::files_with_extension(&root, "psg").unwrap();
+    assert!(files.len() >= 20, "the library is missing: {} files", files.len());
     let mut failures = String::new();
     for file in &files {
         let src = std::fs::read_to_string(file).unwrap();

@@ -114,3 +114,16 @@ fn literals_at_the_edges() {
     let long_digits = format!("const A = 0.{};", "1".repeat(10_000));
     assert_eq!(parse_on_small_stack(long_digits), Ok(()));
 }
+
+/// A 200 KB word where a token is expected is named by a short prefix, not echoed whole.
+#[test]
+fn huge_tokens_are_not_echoed_in_messages() {
+    let word = "n".repeat(200_000);
+    let src = format!("graph g {{\n    output albedo = vec3(0.5) {word}\n}}\n");
+    let errors = psc_grammar::parse(&src).expect_err("a stray word is an error");
+    for e in &errors {
+        assert!(e.message.len() < 300, "{} bytes: {}…", e.message.len(), &e.message[..100]);
+        assert!(e.span.end <= src.len());
+    }
+    assert!(errors.iter().any(|e| e.message.contains("`nnnn") && e.message.contains('…')), "{errors:?}");
+}

@@ -2,7 +2,7 @@
 //!
 //! There is exactly one source for the meaning of each op as the JIT computes it
 //! ([`crate::ops`]); it is generic over [`Arith`]. Code generation instantiates it with
-//! cranelift `F32X4`/`I32X4` values ([`crate::codegen`]), and [`Scalar`] instantiates it with
+//! cranelift `F32X4`/`I32X4` values (`codegen`), and [`Scalar`] instantiates it with
 //! plain `f32`/`i32`, giving a bit-exact scalar mirror of the generated code. Tests compare
 //! the JIT against that mirror exactly and the mirror against `std`/f64 for accuracy.
 

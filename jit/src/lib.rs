@@ -11,6 +11,11 @@
 //! Accuracy: programs without `sin/cos/exp/log/pow/atan2` are bit-exact with the reference
 //! interpreter; the transcendentals' error bounds are documented in [`approx`].
 
+// `unsafe` is denied everywhere but `abi`, the native call boundary (see its module docs and
+// ARCHITECTURE.md). `deny`, not `forbid`, so that one module can be allowed.
+#![deny(unsafe_code)]
+
+#[allow(unsafe_code)]
 mod abi;
 pub mod approx;
 pub mod arith;
@@ -72,7 +77,7 @@ pub struct Options {
     /// Independent 4-lane vectors per main-loop iteration (1..=4).
     pub groups: usize,
     /// List-schedule the loop body for instruction-level parallelism, keeping about this many
-    /// vector values live ([`schedule`]); `None` keeps the IR's order.
+    /// vector values live (`schedule.rs`); `None` keeps the IR's order.
     pub schedule: Option<usize>,
 }
 
@@ -102,7 +107,7 @@ pub fn compile(program: &Program) -> Result<CompiledKernel, JitError> {
 /// Compiles `program` with explicit code generation options.
 pub fn compile_with(program: &Program, options: &Options) -> Result<CompiledKernel, JitError> {
     let start = Instant::now();
-    program.validate().map_err(JitError::InvalidProgram)?;
+    program.check_well_formed().map_err(|e| JitError::InvalidProgram(e.to_string()))?;
     let built = codegen::build(program, options)?;
     let native = abi::NativeKernel::finalize(
         built.module,

@@ -22,7 +22,7 @@ fn points(
     num_seeds: usize,
     nasty: bool,
 ) -> (Vec<f32>, Vec<f32>, Vec<f32>, Vec<Vec<f32>>) {
-    let mut r = Rng(seed);
+    let mut r = Rng::new(seed);
     let draw = |r: &mut Rng| if nasty { r.nasty() } else { r.uniform(-1.0, 1.0) };
     let u = (0..n).map(|_| draw(&mut r)).collect();
     let v = (0..n).map(|_| draw(&mut r)).collect();

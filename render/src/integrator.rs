@@ -54,6 +54,9 @@ pub struct PathConfig {
     /// Select lights for NEE by area (unit radiance) instead of by power.
     pub per_light: bool,
     pub diffuse_only: bool,
+    /// Area lights hit by the first segment count nothing (the caller estimates direct light
+    /// by sampling the lights instead, as the light grid does).
+    pub skip_direct_emitters: bool,
 }
 
 impl RenderOptions {
@@ -90,6 +93,7 @@ impl RenderOptions {
             rr_depth: self.rr_depth,
             per_light: self.per_light,
             diffuse_only: self.diffuse_only,
+            skip_direct_emitters: false,
         }
     }
 }
@@ -402,7 +406,7 @@ impl Renderer {
                 }
                 Traced::Emitter { light, n, t } => {
                     let cos_l = -n.dot(d);
-                    if cos_l > 0.0 {
+                    if cos_l > 0.0 && !(cfg.skip_direct_emitters && depth == 0) {
                         let k = light as usize;
                         let w = if prev_pdf > 0.0 {
                             let pdf_l = sel.pmf(k) / self.lights.areas[k] * t * t / cos_l;

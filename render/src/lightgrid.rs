@@ -5,9 +5,13 @@
 //! (z = shading normal facing the camera, x = unit tangent along dp/du, y = z × x), the
 //! hemisphere is split into [`GRID_THETA_BINS`] polar bins of equal angle over [0, π/2] and
 //! [`GRID_PHI_BINS`] azimuth bins over [0, 2π) (φ from x towards y). Each bin holds the mean
-//! incoming radiance over its solid angle, estimated with `samples_per_bin` directions drawn
+//! incoming radiance over its solid angle. Light arriving straight from the area lights is
+//! estimated by sampling points on every light (`direct_samples` per light, shadow rays tested,
+//! each sample binned by its direction), everything else with `samples_per_bin` directions drawn
 //! uniformly in solid angle inside the bin, each traced as a full path (remaining depth
-//! `max_depth − 1`, so that shading the grid reproduces a `max_depth` render).
+//! `max_depth − 1`, so that shading the grid reproduces a `max_depth` render) whose first
+//! segment ignores area lights. Small lamps are found by a handful of bin directions at best;
+//! sampling them directly makes the direct light, most of a room's light, nearly noise-free.
 //!
 //! File format (`save`): `lightgrid.json` (header, below) and `lightgrid.bin` (little-endian
 //! arrays at the byte offsets the header lists). Arrays: `radiance` f32 [gh, gw, θ, φ, 3]
@@ -41,6 +45,8 @@ pub struct LightGridOptions {
     /// One cell every `stride` pixels in x and y (1 = every pixel).
     pub stride: usize,
     pub samples_per_bin: u32,
+    /// Light samples per area light and cell for the direct light.
+    pub direct_samples: u32,
     pub seed: u64,
     pub max_depth: u32,
     pub rr_depth: u32,
@@ -56,6 +62,7 @@ impl Default for LightGridOptions {
         LightGridOptions {
             stride: 8,
             samples_per_bin: 4,
+            direct_samples: 64,
             seed: 0,
             max_depth: 6,
             rr_depth: 5,
@@ -154,6 +161,7 @@ pub fn compute_light_grid_with_progress(
         rr_depth: opts.rr_depth,
         per_light: opts.per_light,
         diffuse_only: opts.diffuse_only,
+        skip_direct_emitters: true,
     };
     let work = || {
         (0..gw * gh)
@@ -209,6 +217,7 @@ pub fn compute_light_grid_with_progress(
                         }
                     }
                 }
+                add_direct_light(r, origin, sf.ng, &frame, opts, c as u64, &mut cell.slots);
                 cell.valid = true;
                 cell.part = (hit.part + 1) as u16;
                 cell.p = hit.p.to_array();
@@ -254,6 +263,61 @@ pub fn compute_light_grid_with_progress(
         radiance,
         per_slot,
     })
+}
+
+/// The bin (row-major index) of a direction in the cell's local frame (z > 0).
+#[inline]
+pub fn bin_of(local: Vec3) -> usize {
+    let theta = local.z.clamp(-1.0, 1.0).acos();
+    let i = ((theta / (PI / 2.0) * GRID_THETA_BINS as f32) as usize).min(GRID_THETA_BINS - 1);
+    let phi = local.y.atan2(local.x).rem_euclid(2.0 * PI);
+    let j = ((phi / (2.0 * PI) * GRID_PHI_BINS as f32) as usize).min(GRID_PHI_BINS - 1);
+    i * GRID_PHI_BINS + j
+}
+
+/// Adds the unit-radiance light of every area light to the bins it arrives through: the mean
+/// over `direct_samples` light samples of 1/pdf (solid angle), per bin divided by the bin's
+/// solid angle, is the bin's mean radiance from that light.
+fn add_direct_light(
+    r: &Renderer,
+    origin: Vec3,
+    ng: Vec3,
+    frame: &crate::brdf::Frame,
+    opts: &LightGridOptions,
+    cell: u64,
+    slots: &mut [Vec3],
+) {
+    let n = opts.direct_samples;
+    if n == 0 {
+        return;
+    }
+    for k in 0..r.lights().len() {
+        let mut rng = Rng::new(opts.seed ^ 0xd1_5ec7, cell, k as u64);
+        for _ in 0..n {
+            let u_tri = rng.next_f32();
+            let u = rng.next_2d();
+            let Some(lp) = r.lights().sample(k, u_tri, u) else { continue };
+            let to = lp.p - origin;
+            let dist2 = to.length_squared();
+            let dist = dist2.sqrt();
+            let wi = to / dist;
+            let cos_l = -lp.n.dot(wi);
+            let local = frame.to_local(wi);
+            if !(cos_l > 0.0 && wi.dot(ng) > 0.0 && local.z > 0.0) {
+                continue;
+            }
+            if r.geometry().occluded(origin, wi, dist * (1.0 - 1e-4) - r.geometry().eps) {
+                continue;
+            }
+            let pdf = lp.pdf_area * dist2 / cos_l;
+            if !(pdf > 0.0 && pdf.is_finite()) {
+                continue;
+            }
+            let b = bin_of(local);
+            let omega = bin_solid_angle(b / GRID_PHI_BINS);
+            slots[k * BINS + b] += Vec3::ONE / (pdf * n as f32 * omega);
+        }
+    }
 }
 
 impl LightGrid {

@@ -14,11 +14,12 @@ use std::io;
 use std::path::{Path, PathBuf};
 
 use psc_base::output::write_atomic_with;
+use psc_compiler::Channel;
 
 use crate::kernel::grid_uv;
 
-/// Evaluates a graph's forward program at a batch of points: `(params, u, v)` to the nine
-/// channels of [`psc_compiler::CHANNELS`], one column each, as long as `u`.
+/// Evaluates a graph's forward program at a batch of points: `(params, u, v)` to the
+/// [`Channel::ALL`] columns, in order, each as long as `u`.
 pub type Evaluator<'a> = dyn Fn(&[f32], &[f32], &[f32]) -> Result<Vec<Vec<f32>>, String> + Sync + 'a;
 
 /// Baked maps of one graph at one parameter vector, row-major from the top row.
@@ -35,19 +36,27 @@ pub struct Maps {
     pub metallic: Vec<f32>,
 }
 
-/// Assembles maps from the nine forward channels evaluated over [`grid_uv`].
+/// Assembles maps from the forward channels ([`Channel::ALL`]) evaluated over [`grid_uv`].
 pub fn maps_from_channels(size: usize, ch: &[Vec<f32>]) -> Result<Maps, String> {
     let n = size * size;
-    if ch.len() != 9 || ch.iter().any(|c| c.len() != n) {
-        return Err(format!("expected 9 channels of {n} values, got {}", ch.len()));
+    if ch.len() != Channel::COUNT || ch.iter().any(|c| c.len() != n) {
+        return Err(format!("expected {} channels of {n} values, got {}", Channel::COUNT, ch.len()));
     }
+    let col = |c: Channel| &ch[c.index()];
     let mut albedo = Vec::with_capacity(3 * n);
     let mut normal = Vec::with_capacity(3 * n);
     for k in 0..n {
-        albedo.extend_from_slice(&[ch[0][k], ch[1][k], ch[2][k]]);
-        normal.extend_from_slice(&[ch[4][k], ch[5][k], ch[6][k]]);
+        albedo.extend(Channel::ALBEDO.map(|c| col(c)[k]));
+        normal.extend(Channel::NORMAL.map(|c| col(c)[k]));
     }
-    Ok(Maps { size, albedo, roughness: ch[3].clone(), normal, height: ch[7].clone(), metallic: ch[8].clone() })
+    Ok(Maps {
+        size,
+        albedo,
+        roughness: col(Channel::Roughness).clone(),
+        normal,
+        height: col(Channel::Height).clone(),
+        metallic: col(Channel::Metallic).clone(),
+    })
 }
 
 /// Evaluates a graph over a `size`×`size` grid and returns its maps.

@@ -1,21 +1,22 @@
 //! Compiled graphs as parallel kernels over batches of points.
 //!
-//! A [`Kernel`] is a forward [`Program`] with its native code and, optionally, the adjoint
-//! program (from `psc_compiler::diff::reverse::adjoint`) with its native code. Batches are
+//! A [`Kernel`] is a forward [`Program`] with its native code and, optionally, an [`Adjoint`]
+//! (from `psc_compiler::diff::reverse::adjoint`) with its native code. Batches are
 //! split into fixed [`CHUNK`]-point chunks evaluated in parallel with rayon. Chunk boundaries
 //! do not depend on the thread count and every point's arithmetic is independent of which
 //! chunk or vector lane it lands in, so per-point results are bit-identical for any number of
 //! threads. Parameter gradients are summed per chunk in f64, then the chunk partials are added
 //! sequentially in chunk order: the summed gradient is bit-identical for any thread count too.
 //!
-//! Adjoint program layout (the contract with `diff::reverse`): one seed per forward output;
-//! outputs are the forward outputs (same names, same order), then `d_u`, `d_v`, then
-//! `d_param{slot}` for each differentiated parameter slot.
+//! Where each gradient is among the adjoint's outputs is its [`AdjointLayout`], returned by the
+//! differentiation with the program and checked against the forward program once, when the
+//! kernel is built.
 
 use std::fmt;
 use std::sync::Arc;
 
 use psc_compiler::ir::Program;
+use psc_compiler::{Adjoint, AdjointLayout};
 use psc_jit::{CompiledKernel, JitError};
 use rayon::prelude::*;
 
@@ -30,7 +31,7 @@ pub enum KernelError {
     Shape(String),
     /// [`Kernel::adjoint`] on a kernel built without an adjoint program.
     NoAdjoint,
-    /// The adjoint program does not have the layout described in the module docs.
+    /// The adjoint program does not have the layout it came with, for this forward program.
     BadAdjoint(String),
 }
 
@@ -54,10 +55,8 @@ impl From<JitError> for KernelError {
 }
 
 struct AdjointKernel {
-    program: Program,
+    adjoint: Adjoint,
     jit: CompiledKernel,
-    /// Parameter slot of each `d_param` output, in output order.
-    wrt: Vec<u32>,
 }
 
 /// A forward program, its compiled kernel, and optionally its compiled adjoint.
@@ -89,18 +88,19 @@ impl Kernel {
     }
 
     /// Compiles a kernel with its adjoint, checking the adjoint's layout against `forward`.
-    pub fn with_adjoint(forward: Program, adjoint: Program) -> Result<Kernel, KernelError> {
+    pub fn with_adjoint(forward: Program, adjoint: Adjoint) -> Result<Kernel, KernelError> {
         Kernel::new(forward)?.with_added_adjoint(adjoint)
     }
 
-    /// This kernel's forward code (shared, not recompiled) plus a compiled `adjoint`.
-    pub fn with_added_adjoint(&self, adjoint: Program) -> Result<Kernel, KernelError> {
-        let wrt = adjoint_layout(&self.forward, &adjoint)?;
-        let jit = psc_jit::compile(&adjoint)?;
+    /// This kernel's forward code (shared, not recompiled) plus a compiled `adjoint`, whose
+    /// layout is checked against the forward program first.
+    pub fn with_added_adjoint(&self, adjoint: Adjoint) -> Result<Kernel, KernelError> {
+        adjoint.layout.check(&self.forward, &adjoint.program).map_err(KernelError::BadAdjoint)?;
+        let jit = psc_jit::compile(&adjoint.program)?;
         Ok(Kernel {
             forward: self.forward.clone(),
             forward_jit: Arc::clone(&self.forward_jit),
-            adjoint: Some(AdjointKernel { program: adjoint, jit, wrt }),
+            adjoint: Some(AdjointKernel { adjoint, jit }),
         })
     }
 
@@ -111,14 +111,17 @@ impl Kernel {
         &self.forward_jit
     }
     pub fn adjoint_program(&self) -> Option<&Program> {
-        self.adjoint.as_ref().map(|a| &a.program)
+        self.adjoint.as_ref().map(|a| &a.adjoint.program)
+    }
+    pub fn adjoint_layout(&self) -> Option<&AdjointLayout> {
+        self.adjoint.as_ref().map(|a| &a.adjoint.layout)
     }
     pub fn adjoint_jit(&self) -> Option<&CompiledKernel> {
         self.adjoint.as_ref().map(|a| &a.jit)
     }
     /// Parameter slots the adjoint differentiates (empty without an adjoint).
     pub fn wrt_params(&self) -> &[u32] {
-        self.adjoint.as_ref().map_or(&[], |a| &a.wrt)
+        self.adjoint.as_ref().map_or(&[], |a| a.adjoint.layout.wrt())
     }
 
     /// Forward outputs at the points `(u[k], v[k])`, one column per output.
@@ -135,15 +138,7 @@ impl Kernel {
     /// [`Kernel::eval`] into `cols`, resized to one column of `u.len()` per output; columns
     /// already that long are overwritten in place, without allocating.
     pub fn eval_into(&self, params: &[f32], u: &[f32], v: &[f32], cols: &mut Vec<Vec<f32>>) -> Result<(), KernelError> {
-        check_points(u, v)?;
-        let n = u.len();
-        resize_columns(cols, self.forward_jit.num_outputs(), n);
-        let work = split_columns(cols, n);
-        work.into_par_iter().enumerate().try_for_each(|(c, mut outs)| {
-            let r = chunk_range(c, n);
-            self.forward_jit.run(params, &u[r.clone()], &v[r], &[], &mut outs)
-        })?;
-        Ok(())
+        run_chunked(&self.forward_jit, params, u, v, &[], cols)
     }
 
     /// Forward outputs at the texel centres of a `w`×`h` image, row-major, each column
@@ -186,8 +181,11 @@ impl Kernel {
         if let Some((o, c)) = d_out.iter().enumerate().find(|(_, c)| c.len() != n) {
             return Err(KernelError::Shape(format!("gradient column {o} has {} points, u has {n}", c.len())));
         }
-        let nw = adj.wrt.len();
-        // Columns kept per point: forward values, d_u, d_v. d_param columns are chunk scratch.
+        let layout = &adj.adjoint.layout;
+        let nw = layout.wrt().len();
+        // Columns kept per point: forward values, d_u, d_v (outputs `0..nf + 2`, the layout's
+        // d_u and d_v); the d_param columns after them are chunk scratch.
+        debug_assert_eq!((layout.d_u(), layout.d_v(), layout.d_param(0)), (nf, nf + 1, nf + 2));
         let mut kept = std::mem::take(&mut out.values);
         kept.resize_with(nf, Vec::new);
         kept.extend([std::mem::take(&mut out.d_u), std::mem::take(&mut out.d_v)]);
@@ -209,7 +207,7 @@ impl Kernel {
             .collect::<Result<_, _>>()?;
         let mut d_params = vec![0.0f64; self.forward.num_params];
         for partial in &partials {
-            for (slot, g) in adj.wrt.iter().zip(partial) {
+            for (slot, g) in layout.wrt().iter().zip(partial) {
                 d_params[*slot as usize] += g;
             }
         }
@@ -235,6 +233,41 @@ pub fn grid_uv(w: usize, h: usize) -> Result<(Vec<f32>, Vec<f32>), KernelError> 
         }
     }
     Ok((u, v))
+}
+
+/// The fixed chunks a batch of `n` points is split into, as parallel work: [`CHUNK`] points
+/// each, the last one shorter. The same for any thread count, which is what makes results
+/// independent of it; benchmarks and baselines (the interpreter) use it to run over the same
+/// chunks as kernels do.
+pub fn chunk_ranges(n: usize) -> impl IndexedParallelIterator<Item = std::ops::Range<usize>> {
+    (0..n.div_ceil(CHUNK)).into_par_iter().map(move |c| chunk_range(c, n))
+}
+
+/// Runs any compiled kernel over the chunks of a batch, in parallel: `seeds` (one column per
+/// seed the kernel reads, each as long as `u`) and the outputs into `cols`, resized to one
+/// column of `u.len()` per output (allocations are kept). [`Kernel::eval_into`] is this with
+/// the forward kernel; code generation benchmarks call it with kernels of other options.
+pub fn run_chunked(
+    jit: &CompiledKernel,
+    params: &[f32],
+    u: &[f32],
+    v: &[f32],
+    seeds: &[&[f32]],
+    cols: &mut Vec<Vec<f32>>,
+) -> Result<(), KernelError> {
+    check_points(u, v)?;
+    let n = u.len();
+    if let Some((s, c)) = seeds.iter().enumerate().find(|(_, c)| c.len() != n) {
+        return Err(KernelError::Shape(format!("seed column {s} has {} points, u has {n}", c.len())));
+    }
+    resize_columns(cols, jit.num_outputs(), n);
+    let work = split_columns(cols, n);
+    work.into_par_iter().enumerate().try_for_each(|(c, mut outs)| {
+        let r = chunk_range(c, n);
+        let s: Vec<&[f32]> = seeds.iter().map(|col| &col[r.clone()]).collect();
+        jit.run(params, &u[r.clone()], &v[r], &s, &mut outs)
+    })?;
+    Ok(())
 }
 
 fn check_points(u: &[f32], v: &[f32]) -> Result<(), KernelError> {
@@ -266,42 +299,4 @@ fn split_columns(cols: &mut [Vec<f32>], n: usize) -> Vec<Vec<&mut [f32]>> {
         }
     }
     work
-}
-
-/// Checks the adjoint layout; returns the parameter slot of each `d_param` output.
-fn adjoint_layout(forward: &Program, adjoint: &Program) -> Result<Vec<u32>, KernelError> {
-    let bad = |m: String| Err(KernelError::BadAdjoint(m));
-    let nf = forward.outputs.len();
-    if adjoint.num_seeds != nf {
-        return bad(format!("{} seeds for {nf} forward outputs", adjoint.num_seeds));
-    }
-    if adjoint.outputs.len() < nf + 2 {
-        return bad(format!("{} outputs, expected at least {}", adjoint.outputs.len(), nf + 2));
-    }
-    for (f, a) in forward.outputs.iter().zip(&adjoint.outputs) {
-        if f.name != a.name {
-            return bad(format!("output `{}` where forward output `{}` was expected", a.name, f.name));
-        }
-    }
-    if adjoint.outputs[nf].name != "d_u" || adjoint.outputs[nf + 1].name != "d_v" {
-        return bad(format!(
-            "outputs `{}`, `{}` where `d_u`, `d_v` were expected",
-            adjoint.outputs[nf].name,
-            adjoint.outputs[nf + 1].name
-        ));
-    }
-    let mut wrt = Vec::new();
-    for out in &adjoint.outputs[nf + 2..] {
-        let slot = out.name.strip_prefix("d_param").and_then(|s| s.parse::<u32>().ok());
-        match slot {
-            Some(s) if (s as usize) < forward.num_params && !wrt.contains(&s) => wrt.push(s),
-            _ => {
-                return bad(format!(
-                    "output `{}` is not `d_param<slot>` for a distinct slot < {}",
-                    out.name, forward.num_params
-                ))
-            }
-        }
-    }
-    Ok(wrt)
 }

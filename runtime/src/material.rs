@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use psc_compiler::CHANNELS;
+use psc_compiler::Channel;
 use psc_render::material::{SurfaceMaterial, SurfaceSample};
 
 use crate::library::Material;
@@ -29,12 +29,12 @@ impl ProceduralMaterial {
     }
 }
 
-/// Channel columns of the forward program (see `psc_compiler::CHANNELS`) to a sample.
-fn sample_at(channels: &[Vec<f32>], k: usize) -> SurfaceSample {
+/// The forward program's channels at point `k` (`at(c)`: channel `c` there) to a sample.
+fn sample_from(at: impl Fn(Channel) -> f32) -> SurfaceSample {
     SurfaceSample {
-        albedo: [channels[0][k], channels[1][k], channels[2][k]],
-        roughness: channels[3][k],
-        normal: [channels[4][k], channels[5][k], channels[6][k]],
+        albedo: Channel::ALBEDO.map(&at),
+        roughness: at(Channel::Roughness),
+        normal: Channel::NORMAL.map(&at),
     }
 }
 
@@ -42,9 +42,9 @@ impl SurfaceMaterial for ProceduralMaterial {
     /// One hit: the JIT kernel's single-point entry (stack buffers only, no thread pool),
     /// since the path tracer shades one hit at a time.
     fn eval(&self, uv: [f32; 2]) -> SurfaceSample {
-        let mut c = [0.0f32; CHANNELS.len()];
+        let mut c = [0.0f32; Channel::COUNT];
         match self.material.kernel.forward_jit().run_point(&self.params, uv[0], uv[1], &mut c) {
-            Ok(()) => SurfaceSample { albedo: [c[0], c[1], c[2]], roughness: c[3], normal: [c[4], c[5], c[6]] },
+            Ok(()) => sample_from(|ch| c[ch.index()]),
             Err(_) => SHAPE_ERROR_SAMPLE,
         }
     }
@@ -55,7 +55,7 @@ impl SurfaceMaterial for ProceduralMaterial {
         match self.material.kernel.eval(&self.params, &u, &v) {
             Ok(channels) => {
                 for (k, o) in out.iter_mut().enumerate() {
-                    *o = sample_at(&channels, k);
+                    *o = sample_from(|ch| channels[ch.index()][k]);
                 }
             }
             Err(_) => out.fill(SHAPE_ERROR_SAMPLE),

@@ -3,6 +3,7 @@
 
 use psc_compiler::diff::reverse;
 use psc_compiler::ir::{Builder, NodeId, Output, Program};
+use psc_compiler::{Adjoint, AdjointLayout};
 use psc_runtime::kernel::{grid_uv, Gradients, Kernel, KernelError, CHUNK};
 
 fn pool(k: usize) -> rayon::ThreadPool {
@@ -150,7 +151,8 @@ fn adjoint_matches_central_differences_of_the_jit_forward() {
 }
 
 /// A hand-written adjoint of f0 = p0 sin(u) + p1 v², f1 = p1 u, checking the plumbing
-/// (seed routing, output order, slot mapping, per-chunk sums) independently of diff::reverse.
+/// (seed routing, the layout's output order and slot mapping, per-chunk sums) independently of
+/// diff::reverse.
 #[test]
 fn hand_made_adjoint_plumbing() {
     let mut b = Builder::new();
@@ -177,14 +179,18 @@ fn hand_made_adjoint_plumbing() {
     let dp1b = b.mul(s1, u);
     let dp1 = b.add(dp1a, dp1b);
     let dp0 = b.mul(s0, su);
-    let adj = b.finish(vec![
+    // The names of the gradient outputs are for dumps only: the layout says what they are.
+    let program = b.finish(vec![
         Output { name: "f0".into(), node: f0 },
         Output { name: "f1".into(), node: f1 },
-        Output { name: "d_u".into(), node: du },
-        Output { name: "d_v".into(), node: dv },
-        Output { name: "d_param1".into(), node: dp1 },
-        Output { name: "d_param0".into(), node: dp0 },
+        Output { name: "grad u".into(), node: du },
+        Output { name: "grad v".into(), node: dv },
+        Output { name: "grad p1".into(), node: dp1 },
+        Output { name: "grad p0".into(), node: dp0 },
     ]);
+    let adj = Adjoint { program, layout: AdjointLayout::new(2, vec![1, 0]) };
+    let wrong_slots = Adjoint { layout: AdjointLayout::new(2, vec![1]), ..adj.clone() };
+    assert!(matches!(Kernel::with_adjoint(fwd.clone(), wrong_slots), Err(KernelError::BadAdjoint(_))));
     let k = Kernel::with_adjoint(fwd, adj).unwrap();
     assert_eq!(k.wrt_params(), &[1, 0]);
     let n = 2 * CHUNK + 5;
@@ -213,7 +219,7 @@ fn shapes_are_checked_not_panicked() {
     assert!(matches!(k.adjoint(&p, &[0.5], &[0.5], &[]), Err(KernelError::NoAdjoint)));
     let bad = reverse::adjoint(&fwd, &[1]);
     let mut renamed = bad.clone();
-    renamed.outputs[0].name = "other".into();
+    renamed.program.outputs[0].name = "other".into();
     assert!(matches!(Kernel::with_adjoint(fwd.clone(), renamed), Err(KernelError::BadAdjoint(_))));
     let k = Kernel::with_adjoint(fwd, bad).unwrap();
     assert!(matches!(k.adjoint(&p, &[0.5], &[0.5], &[&[1.0], &[1.0]]), Err(KernelError::Shape(_))));
@@ -233,4 +239,42 @@ fn grid_row_zero_is_the_top_of_the_image() {
     assert_eq!(out[1][w * (h - 1)], 0.5 / 4.0, "last row is v near 0");
     let (gu, gv) = grid_uv(w, h).unwrap();
     assert_eq!((out[0].clone(), out[1].clone()), (gu, gv));
+}
+
+/// The chunking helpers the kernel uses are the ones benchmarks get: contiguous fixed chunks,
+/// and `run_chunked` of the adjoint kernel gives the columns `Kernel::adjoint` reports.
+#[test]
+fn chunk_helpers_cover_the_batch_and_match_the_kernel() {
+    use psc_runtime::kernel::{chunk_ranges, run_chunked};
+    use rayon::prelude::*;
+    for n in [0, 1, CHUNK, CHUNK + 1, 3 * CHUNK + 17] {
+        let ranges: Vec<_> = chunk_ranges(n).collect();
+        assert_eq!(ranges.len(), n.div_ceil(CHUNK));
+        let mut next = 0;
+        for r in &ranges {
+            assert_eq!(r.start, next);
+            assert!(r.len() == CHUNK || r.end == n, "{r:?} of {n}");
+            next = r.end;
+        }
+        assert_eq!(next, n);
+    }
+    let fwd = smooth_forward();
+    let k = Kernel::with_adjoint(fwd.clone(), reverse::adjoint(&fwd, &[0, 2])).unwrap();
+    let n = 2 * CHUNK + 3;
+    let (u, v) = points(n);
+    let s = seeds(n, 3);
+    let s_refs: Vec<&[f32]> = s.iter().map(|c| &c[..]).collect();
+    let p = params();
+    let mut cols = Vec::new();
+    run_chunked(k.adjoint_jit().unwrap(), &p, &u, &v, &s_refs, &mut cols).unwrap();
+    let g = k.adjoint(&p, &u, &v, &s_refs).unwrap();
+    let layout = k.adjoint_layout().unwrap();
+    assert_eq!(bits(&cols[..3]), bits(&g.values));
+    assert_eq!(bits(std::slice::from_ref(&cols[layout.d_u()])), bits(std::slice::from_ref(&g.d_u)));
+    let summed: f64 = cols[layout.d_param(1)].iter().map(|&x| f64::from(x)).sum();
+    assert!((summed - g.d_params[2]).abs() <= 1e-6 * summed.abs().max(1.0));
+    assert!(
+        run_chunked(k.adjoint_jit().unwrap(), &p, &u, &v, &s_refs[..2], &mut cols).is_err(),
+        "a missing seed column"
+    );
 }

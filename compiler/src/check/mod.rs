@@ -5,7 +5,7 @@
 //! (loop trip counts, IR size), so `lower` may treat any other surprise as a bug.
 
 mod expr;
-mod graph;
+mod graph_def;
 
 use std::cell::RefCell;
 use std::collections::{HashMap, HashSet};
@@ -18,7 +18,7 @@ use crate::module::{ItemRef, ModuleId, ModuleSet};
 use crate::types::Ty;
 
 pub use expr::MAX_LOOP_TRIPS;
-pub use graph::{OutputKind, OUTPUTS};
+pub use graph_def::{OutputKind, OUTPUTS};
 
 /// Deepest expression nesting the checker walks; deeper input is rejected, not overflowed. A
 /// backstop: the parser already refuses trees deeper than [`psc_grammar::MAX_EXPR_DEPTH`], and
@@ -68,7 +68,7 @@ pub(crate) struct Checker<'a> {
     /// Local variables, innermost last; blocks truncate back to their length on exit.
     locals: Vec<Local>,
     /// The graph being checked, if any.
-    graph: Option<Rc<graph::GraphScope>>,
+    graph: Option<Rc<graph_def::GraphScope>>,
     /// Calls from each function of this module to functions of this module (recursion check).
     calls: HashMap<usize, Vec<(usize, Span)>>,
     current_fn: Option<usize>,

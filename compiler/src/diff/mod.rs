@@ -44,7 +44,7 @@ pub mod forward;
 pub mod reverse;
 
 pub use forward::{derivative, derivative_program, ForwardDiff, Wrt};
-pub use reverse::adjoint;
+pub use reverse::{adjoint, Adjoint, AdjointLayout};
 
 use crate::ir::{Builder, NodeId, Op};
 

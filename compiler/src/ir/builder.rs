@@ -174,9 +174,9 @@ impl Builder {
             Op::Mul(a, b) => {
                 for (x, y) in [(a, b), (b, a)] {
                     match k(self, x) {
-                        Some(c) if c == 0.0 => return Node(self.constant(0.0)),
-                        Some(c) if c == 1.0 => return Node(y),
-                        Some(c) if c == -1.0 => return Node(self.push(Op::Neg(y))),
+                        Some(0.0) => return Node(self.constant(0.0)),
+                        Some(1.0) => return Node(y),
+                        Some(-1.0) => return Node(self.push(Op::Neg(y))),
                         _ => {}
                     }
                 }
@@ -205,7 +205,7 @@ impl Builder {
                     return Node(self.constant(0.0));
                 }
                 match k(self, b) {
-                    Some(c) if c == 1.0 => Node(a),
+                    Some(1.0) => Node(a),
                     // Division by a constant is multiplication by its reciprocal when that is
                     // exact (a power of two), so results match the unfolded program bit for bit.
                     Some(c) if c != 0.0 && c.is_finite() && (1.0 / c).is_finite() && is_pow2(c) => {
@@ -220,7 +220,7 @@ impl Builder {
             Op::Min(a, b) => Keep(Op::Min(a.min(b), a.max(b))),
             Op::Max(a, b) => Keep(Op::Max(a.min(b), a.max(b))),
             Op::Pow(a, b) => match k(self, b) {
-                Some(e) if e == 1.0 => {
+                Some(1.0) => {
                     // pow(a, 1) = a for a > 0, else 0.
                     let zero = self.constant(0.0);
                     Node(self.push(Op::Max(a, zero)))

@@ -1,20 +1,31 @@
 //! The scalar expression IR every graph lowers to.
 //!
 //! A [`Program`] is an arena of [`Op`]s addressed by [`NodeId`] handles plus a list of named
-//! scalar outputs. Invariants (established by [`Builder`], checked by [`Program::validate`]):
-//! - **topological order**: every operand of node `i` has an id `< i`;
+//! scalar outputs. Every value is an `f32`; booleans are `0.0` / `1.0`, integers are
+//! integer-valued floats.
+//!
+//! Invariants, established by [`Builder`] and [`Program::eliminate_dead_code`], and checked,
+//! one rule at a time, by [`Program::validate`] (see [`validate`] for the exact rules):
+//! - **well-formed**: every operand of node `i` has an id `< i` (topological order); every
+//!   `Param`/`Seed` slot and output node is in range. This much is all evaluation needs:
+//!   [`Program::check_well_formed`], which the JIT requires;
 //! - **hash-consed**: no two nodes are the same op on the same operands;
-//! - **folded**: no non-leaf node has only constant operands (it would have been folded);
-//! - every value is an `f32`; booleans are `0.0` / `1.0`, integers are integer-valued floats.
+//! - **folded and simplified**: every node is what the [`Builder`] makes of it: no non-leaf node
+//!   has only constant operands, no algebraic identity applies, commutative operands are in
+//!   canonical order, constants are canonical (no `-0.0`, one NaN);
+//! - **no dead code**: every node reaches an output (true after `eliminate_dead_code`).
 //!
 //! The exact meaning of every op lives in [`semantics`]; the interpreter and the JIT both
 //! follow it (the JIT within the stated error of its polynomial transcendentals).
 
 pub mod builder;
 pub mod print;
+pub mod random;
 pub mod semantics;
+pub mod validate;
 
 pub use builder::Builder;
+pub use validate::InvalidProgram;
 
 use std::fmt;
 
@@ -249,36 +260,6 @@ impl Program {
 
     pub fn output(&self, name: &str) -> Option<NodeId> {
         self.outputs.iter().find(|o| o.name == name).map(|o| o.node)
-    }
-
-    /// Checks the module-level invariants; returns a description of the first violation.
-    pub fn validate(&self) -> Result<(), String> {
-        let mut seen = std::collections::HashSet::new();
-        for (i, op) in self.nodes.iter().enumerate() {
-            for operand in op.operands() {
-                if operand.index() >= i {
-                    return Err(format!("%{i} ({}) uses {operand}, not defined before it", op.mnemonic()));
-                }
-            }
-            match *op {
-                Op::Param(p) if p as usize >= self.num_params => {
-                    return Err(format!("%{i} reads param {p} but the program has {}", self.num_params))
-                }
-                Op::Seed(s) if s as usize >= self.num_seeds => {
-                    return Err(format!("%{i} reads seed {s} but the program has {}", self.num_seeds))
-                }
-                _ => {}
-            }
-            if !seen.insert(*op) {
-                return Err(format!("%{i} ({}) duplicates an earlier node", op.mnemonic()));
-            }
-        }
-        for out in &self.outputs {
-            if out.node.index() >= self.nodes.len() {
-                return Err(format!("output `{}` points past the end", out.name));
-            }
-        }
-        Ok(())
     }
 
     /// Removes nodes no output reaches and renumbers the rest, keeping their order.

@@ -12,6 +12,7 @@ use crate::types::swizzle;
 
 impl Lowerer<'_> {
     pub(super) fn lower_expr(&mut self, e: &Expr) -> Lowered<Value> {
+        self.visits += 1;
         Ok(match &e.kind {
             ExprKind::Float(x) => Value::scalar(self.b.constant(*x as f32)),
             ExprKind::Int(i) => Value::scalar(self.b.constant(*i as f32)),
@@ -227,6 +228,7 @@ impl Lowerer<'_> {
                     }
                     self.locals.truncate(mark);
                     self.check_size(*span)?;
+                    self.check_work(*span)?;
                 }
             }
         }
@@ -294,8 +296,12 @@ impl Lowerer<'_> {
             };
             locals.push((p.name.name.clone(), self.coerce(v, &p.ty)));
         }
+        self.check_work(span)?;
+        self.calls.push((self.file, span));
         let body = &def.body;
-        let result = self.in_module(module, Some(locals), |l| l.lower_block(body))?;
+        let result = self.in_module(module, Some(locals), |l| l.lower_block(body));
+        self.calls.pop();
+        let result = result?;
         Ok(self.coerce(result, &def.ret))
     }
 

@@ -13,14 +13,24 @@ use std::time::Instant;
 
 use psc_grammar::ast::{self, GraphMember, Span};
 
+use crate::channel::Channel;
+use crate::compiled::{CompileStats, CompiledGraph, GraphInfo, ParamInfo, ParamKind};
 use crate::diag::{Diagnostic, FileId};
 use crate::diff::forward::{ForwardDiff, Wrt};
-use crate::graph::{CompileStats, CompiledGraph, GraphInfo, ParamInfo, ParamKind, CHANNELS};
 use crate::ir::{Builder, NodeId, Output};
 use crate::module::{ItemRef, ModuleId, ModuleSet};
 
 /// Lowering stops with an error past this many IR nodes: no material needs anywhere near it.
 pub const MAX_IR_NODES: usize = 2_000_000;
+
+/// Lowering stops with an error past this much work: expressions evaluated plus IR nodes
+/// requested (before hash-consing shares them). The node limit alone cannot bound the work,
+/// because hash-consing can fold an exponential number of requests into a few nodes (a
+/// function that calls the one below it twice, forty levels deep, is 2^40 inlined calls that
+/// share a few hundred nodes). The largest library graph uses under 4,000 (marble, 3,960;
+/// `psc compile` prints each graph's figure): a margin of 2,000 times, while running out
+/// takes about a second.
+pub const MAX_LOWERING_WORK: usize = 8_000_000;
 
 /// A lowered value: one IR node per scalar component, or a record of values.
 #[derive(Clone, Debug)]
@@ -88,6 +98,10 @@ pub(crate) struct Lowerer<'a> {
     consts: HashMap<ItemRef, Value>,
     d_du: ForwardDiff,
     d_dv: ForwardDiff,
+    /// Expressions evaluated so far (the other half of the work, besides requested nodes).
+    visits: usize,
+    /// Call sites being inlined, outermost first: where a budget error came from.
+    calls: Vec<(FileId, Span)>,
 }
 
 impl<'a> Lowerer<'a> {
@@ -102,7 +116,42 @@ impl<'a> Lowerer<'a> {
             consts: HashMap::new(),
             d_du: ForwardDiff::new(Wrt::U),
             d_dv: ForwardDiff::new(Wrt::V),
+            visits: 0,
+            calls: Vec::new(),
         }
+    }
+
+    /// Work done so far, in the units of [`MAX_LOWERING_WORK`].
+    fn work(&self) -> usize {
+        self.visits + self.b.requested()
+    }
+
+    /// Fails once the work budget is spent, at `span` (a call about to be inlined, or a loop
+    /// about to run another iteration), naming the outermost call that led there.
+    fn check_work(&self, span: Span) -> Lowered<()> {
+        if self.work() <= MAX_LOWERING_WORK {
+            return Ok(());
+        }
+        let depth = self.calls.len();
+        let mut e = Diagnostic::error(
+            self.file,
+            span,
+            format!(
+                "lowering this graph takes more than {MAX_LOWERING_WORK} steps (expressions evaluated and IR nodes \
+                 requested); the budget runs out here, {depth} inlined call{} deep",
+                if depth == 1 { "" } else { "s" }
+            ),
+        )
+        .with_label("budget exceeded here")
+        .with_hint(
+            "every call is inlined, so a function that calls another several times, nested level after level, \
+             multiplies the work at each level (two calls per level, 40 levels deep, are 2^40 calls); \
+             compute a shared value once with `let`, or reduce the nesting, loop counts or octaves",
+        );
+        if let Some(&(file, outer)) = self.calls.first().filter(|&&(f, s)| (f, s) != (self.file, span)) {
+            e = e.with_related(file, outer, "inlined from this call in the graph");
+        }
+        Err(Box::new(e))
     }
 
     fn error(&self, span: Span, message: impl Into<String>) -> Box<Diagnostic> {
@@ -205,24 +254,30 @@ pub fn lower_graph(set: &ModuleSet, module: ModuleId, g: &ast::GraphDef) -> Resu
     let albedo = outs.get("albedo").cloned().unwrap_or(Value::Num(vec![zero; 3]));
     let roughness = outs.get("roughness").cloned().unwrap_or(Value::scalar(zero));
     let metallic = outs.get("metallic").cloned().unwrap_or(Value::scalar(zero));
-    let nodes = [
-        albedo.comp(0),
-        albedo.comp(1),
-        albedo.comp(2),
-        roughness.comp(0),
-        normal.comp(0),
-        normal.comp(1),
-        normal.comp(2),
-        height.comp(0),
-        metallic.comp(0),
-    ];
+    let node_of = |c: Channel| match c {
+        Channel::AlbedoR => albedo.comp(0),
+        Channel::AlbedoG => albedo.comp(1),
+        Channel::AlbedoB => albedo.comp(2),
+        Channel::Roughness => roughness.comp(0),
+        Channel::NormalX => normal.comp(0),
+        Channel::NormalY => normal.comp(1),
+        Channel::NormalZ => normal.comp(2),
+        Channel::Height => height.comp(0),
+        Channel::Metallic => metallic.comp(0),
+    };
     l.check_size(g.span)?;
-    let requested = l.b.requested();
-    let outputs = CHANNELS.iter().zip(nodes).map(|(name, node)| Output { name: name.to_string(), node }).collect();
+    let (requested, work) = (l.b.requested(), l.work());
+    let outputs = Channel::ALL.into_iter().map(|c| Output { name: c.name().into(), node: node_of(c) }).collect();
     let mut forward = l.b.finish(outputs);
     let nodes_before_dce = forward.nodes.len();
     forward.eliminate_dead_code();
-    debug_assert_eq!(forward.validate(), Ok(()));
+    // Cheap next to lowering (one hash per node), and what every consumer relies on.
+    if let Err(e) = forward.validate() {
+        let message = format!("internal compiler error: graph `{}` lowered to an invalid program: {e}", g.name.name);
+        return Err(Box::new(
+            Diagnostic::error(l.file, g.name.span, message).with_hint("please report this with the input file"),
+        ));
+    }
     let module_ref = set.module(module);
     Ok(CompiledGraph {
         info: GraphInfo {
@@ -236,6 +291,7 @@ pub fn lower_graph(set: &ModuleSet, module: ModuleId, g: &ast::GraphDef) -> Resu
         },
         stats: CompileStats {
             requested_nodes: requested,
+            lowering_work: work,
             nodes_before_dce,
             forward_ops: forward.op_count(),
             lower_time: started.elapsed(),

@@ -4,6 +4,7 @@
 use proptest::prelude::*;
 use psc_compiler::diff::Wrt;
 use psc_compiler::interp::eval_point;
+use psc_compiler::ir::random::{non_leaf_op, NON_LEAF_KINDS};
 use psc_compiler::ir::{semantics, Builder, NodeId, Op, Output, Program};
 
 pub const NUM_PARAMS: u32 = 3;
@@ -11,11 +12,11 @@ pub const NUM_PARAMS: u32 = 3;
 // ---------------------------------------------------------------------------------------------
 // Random programs
 
-/// Every non-leaf op kind, in the order the generator's `kind` indexes them (0 is a constant).
-pub const OP_KINDS: [&str; 21] = [
-    "neg", "abs", "floor", "sqrt", "sin", "cos", "exp", "log", "add", "sub", "mul", "div", "min", "max", "pow",
-    "atan2", "hash", "lt", "le", "eq", "select",
-];
+/// Every non-leaf op kind's mnemonic, in the order `random::non_leaf_op` numbers them (the
+/// generator's `kind` k > 0 is `non_leaf_op(k - 1, …)`; 0 is a constant).
+pub static OP_KINDS: std::sync::LazyLock<Vec<&'static str>> = std::sync::LazyLock::new(|| {
+    (0..NON_LEAF_KINDS).map(|k| non_leaf_op(k, NodeId(0), NodeId(0), NodeId(0)).expect("a kind").mnemonic()).collect()
+});
 
 /// One generated node: an op kind, three operand picks and a constant (for kind 0).
 #[derive(Clone, Debug)]
@@ -26,7 +27,7 @@ pub struct NodeSpec {
 }
 
 pub fn node_spec() -> impl Strategy<Value = NodeSpec> {
-    (0..=OP_KINDS.len(), any::<[u16; 3]>(), -3.0f32..3.0).prop_map(|(kind, picks, constant)| NodeSpec {
+    (0..=NON_LEAF_KINDS, any::<[u16; 3]>(), -3.0f32..3.0).prop_map(|(kind, picks, constant)| NodeSpec {
         kind,
         picks,
         constant,
@@ -58,33 +59,7 @@ pub fn build_program(specs: &[NodeSpec], extra_outputs: &[u16]) -> Program {
         let (a, c, d) = (pick(0), pick(1), pick(2));
         let node = match spec.kind {
             0 => b.constant(spec.constant),
-            k => {
-                let op = match OP_KINDS[k - 1] {
-                    "neg" => Op::Neg(a),
-                    "abs" => Op::Abs(a),
-                    "floor" => Op::Floor(a),
-                    "sqrt" => Op::Sqrt(a),
-                    "sin" => Op::Sin(a),
-                    "cos" => Op::Cos(a),
-                    "exp" => Op::Exp(a),
-                    "log" => Op::Log(a),
-                    "add" => Op::Add(a, c),
-                    "sub" => Op::Sub(a, c),
-                    "mul" => Op::Mul(a, c),
-                    "div" => Op::Div(a, c),
-                    "min" => Op::Min(a, c),
-                    "max" => Op::Max(a, c),
-                    "pow" => Op::Pow(a, c),
-                    "atan2" => Op::Atan2(a, c),
-                    "hash" => Op::Hash(a, c),
-                    "lt" => Op::Lt(a, c),
-                    "le" => Op::Le(a, c),
-                    "eq" => Op::Eq(a, c),
-                    "select" => Op::Select(a, c, d),
-                    other => unreachable!("{other}"),
-                };
-                b.push(op)
-            }
+            k => b.push(non_leaf_op(k - 1, a, c, d).expect("kind in range")),
         };
         pool.push(node);
     }

@@ -7,9 +7,10 @@
 
 use std::path::{Path, PathBuf};
 
+use psc_base::SplitMix64;
 use psc_compiler::interp::{eval, Batch};
 use psc_compiler::ir::{semantics, Op, Program};
-use psc_compiler::{compile_files, CompiledGraph, GraphInfo, Options, ParamKind, CHANNELS};
+use psc_compiler::{compile_files, Adjoint, Channel, CompiledGraph, GraphInfo, Options, ParamKind};
 
 // ---------------------------------------------------------------------------------------------
 // The library
@@ -58,15 +59,15 @@ pub fn env_usize(name: &str, default: usize) -> usize {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Deterministic randomness (no dependency, reproducible across runs)
+// Deterministic randomness (reproducible across runs)
 
-/// SplitMix64.
+/// [`SplitMix64`] with the seeding and ranges these tests use.
 #[derive(Clone, Debug)]
-pub struct Rng(u64);
+pub struct Rng(SplitMix64);
 
 impl Rng {
     pub fn new(seed: u64) -> Self {
-        Rng(seed ^ 0x5DEE_CE66_D1CE_4E5B)
+        Rng(SplitMix64::new(seed ^ 0x5DEE_CE66_D1CE_4E5B))
     }
     /// A generator seeded from a name (a graph or fn), so adding graphs does not reshuffle
     /// the samples of the others.
@@ -77,22 +78,15 @@ impl Rng {
         }
         Rng::new(h)
     }
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
     /// Uniform in [0, 1).
     pub fn unit(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+        self.0.next_f32()
     }
     pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
         lo + (hi - lo) * self.unit()
     }
     pub fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
+        self.0.below(n)
     }
 }
 
@@ -298,26 +292,22 @@ pub const GRAD_ROUND: f32 = 1.0;
 /// cannot resolve the derivative, or disagrees.
 pub const GRAD_STEPS: [f32; 2] = [1e-3, 1e-4];
 
-/// Checks the fused adjoint program of `forward` against central finite differences of the
-/// seed-weighted forward channels, at each `(u, v)` of `points`, for u, v and every slot of
-/// `slots` (the program's continuous slots, in the order of its `d_param` outputs).
+/// Checks the fused adjoint of `forward` against central finite differences of the
+/// seed-weighted forward channels, at each `(u, v)` of `points`, for u, v and every slot the
+/// adjoint differentiates (its layout's `wrt`).
 pub fn check_gradients(
     label: &str,
     forward: &Program,
-    adjoint: &Program,
-    slots: &[u32],
+    adjoint: &Adjoint,
     params: &[f32],
     points: &[(f32, f32)],
     seeds: &[[f32; 9]],
 ) -> GradCoverage {
     let nch = forward.outputs.len();
-    assert_eq!(nch, CHANNELS.len());
-    assert_eq!(adjoint.outputs.len(), nch + 2 + slots.len(), "adjoint layout");
-    for (k, s) in slots.iter().enumerate() {
-        assert_eq!(adjoint.outputs[nch + 2 + k].name, format!("d_param{s}"), "adjoint output order");
-    }
-    assert_eq!(adjoint.outputs[nch].name, "d_u");
-    assert_eq!(adjoint.outputs[nch + 1].name, "d_v");
+    assert_eq!(nch, Channel::COUNT);
+    let (layout, adjoint) = (&adjoint.layout, &adjoint.program);
+    layout.check(forward, adjoint).unwrap_or_else(|e| panic!("{label}: adjoint layout: {e}"));
+    let slots = layout.wrt();
     let mut cov = GradCoverage::default();
 
     // Exact gradients, by the interpreter, one batch.
@@ -333,18 +323,20 @@ pub fn check_gradients(
             if e[c].to_bits() != base[k][c].to_bits() && !(e[c].is_nan() && base[k][c].is_nan()) {
                 cov.failures.push(format!(
                     "{label}: fused forward channel {} = {} but forward = {}",
-                    CHANNELS[c], e[c], base[k][c]
+                    Channel::ALL[c],
+                    e[c],
+                    base[k][c]
                 ));
             }
         }
     }
 
-    let mut vars = vec![Var::U, Var::V];
-    vars.extend(slots.iter().map(|&s| Var::Slot(s)));
-    for (vi, &var) in vars.iter().enumerate() {
+    let mut vars = vec![(Var::U, layout.d_u()), (Var::V, layout.d_v())];
+    vars.extend(slots.iter().enumerate().map(|(k, &s)| (Var::Slot(s), layout.d_param(k))));
+    for &(var, output) in &vars {
         // Steps: a first try, and a smaller one when the first crosses a branch.
         for (pi, &(pu, pv)) in points.iter().enumerate() {
-            let exact_d = exact[pi][nch + vi];
+            let exact_d = exact[pi][output];
             let x0 = match var {
                 Var::U => pu,
                 Var::V => pv,
@@ -359,7 +351,7 @@ pub fn check_gradients(
             let mut failed: Vec<String> = Vec::new();
             for h0 in GRAD_STEPS {
                 let h = h0 * x0.abs().max(1.0);
-                match probe(forward, params, (pu, pv), var, x0, h, &seeds[pi], exact_d) {
+                match probe(forward, params, (pu, pv), var, (x0, h), &seeds[pi], exact_d) {
                     Outcome::Agreed => {
                         outcome = Outcome::Agreed;
                         break;
@@ -405,8 +397,7 @@ fn probe(
     params: &[f32],
     (u, v): (f32, f32),
     var: Var,
-    x0: f32,
-    h: f32,
+    (x0, h): (f32, f32),
     seeds: &[f32; 9],
     exact: f32,
 ) -> Outcome {
@@ -454,7 +445,8 @@ fn probe(
     let d_h = ((loss[4] - loss[0]) / (xs[4] as f64 - xs[0] as f64)) as f32;
     let d_half = ((loss[3] - loss[1]) / (xs[3] as f64 - xs[1] as f64)) as f32;
     let disagreement = (d_h - d_half).abs();
-    if !(disagreement <= 0.05 * (1.0 + d_h.abs())) {
+    let resolved = disagreement <= 0.05 * (1.0 + d_h.abs()); // false for NaN, on purpose
+    if !resolved {
         return Outcome::Unresolved;
     }
     // Rounding noise: how far the jittered losses stray from the line through x with slope D(h).

@@ -2,7 +2,7 @@
 //! derivative of a Gaussian and a cubic approximation of its Hilbert transform) as seven
 //! x–y separable 9-tap basis filters built from five 1D factors, with the steering
 //! coefficients for any number of orientations, and the 1D line operations the bank's forward
-//! and adjoint passes are made of.
+//! and adjoint passes use.
 //!
 //! Coordinates: x is the column (to the right), y the row (downwards); an orientation θ is
 //! measured from +x towards +y, and the filter of orientation θ varies along (cos θ, sin θ),
@@ -103,29 +103,8 @@ impl Bank {
     }
 }
 
-/// `out[i] = Σ_k f[k]·inp[i + k]` (a correlation; `inp` is `out.len() + TAPS − 1` long).
-#[inline]
-pub(super) fn correlate(inp: &[f32], f: &[f32; TAPS], out: &mut [f32]) {
-    let n = out.len();
-    debug_assert_eq!(inp.len(), n + TAPS - 1);
-    out.fill(0.0);
-    for (k, &c) in f.iter().enumerate() {
-        axpy(c, &inp[k..k + n], out);
-    }
-}
-
-/// The adjoint of [`correlate`]: `inp_grad[i + k] += f[k]·out_grad[i]`.
-#[inline]
-pub(super) fn correlate_adjoint(out_grad: &[f32], f: &[f32; TAPS], inp_grad: &mut [f32]) {
-    let n = out_grad.len();
-    debug_assert_eq!(inp_grad.len(), n + TAPS - 1);
-    for (k, &c) in f.iter().enumerate() {
-        axpy(c, out_grad, &mut inp_grad[k..k + n]);
-    }
-}
-
 /// `y += a·x`.
-#[inline]
+#[inline(never)]
 pub(super) fn axpy(a: f32, x: &[f32], y: &mut [f32]) {
     for (y, x) in y.iter_mut().zip(x) {
         *y += a * x;

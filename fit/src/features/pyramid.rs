@@ -42,6 +42,8 @@ pub(super) struct Geometry {
     pub factor: usize,
     /// Levels 0.. up to the last active one (levels past it are not built).
     pub levels: Vec<Level>,
+    /// Weights of the working-resolution pixels (minimum over each box).
+    pub weight0: Vec<f32>,
 }
 
 impl Geometry {
@@ -67,6 +69,7 @@ impl Geometry {
                 *out = m;
             }
         }
+        let weight0 = v.clone();
         let (mut lw, mut lh) = (w0, h0);
         let mut levels = Vec::with_capacity(num_levels);
         for l in 0..num_levels {
@@ -79,7 +82,7 @@ impl Geometry {
         }
         let last = levels.iter().rposition(|l| l.active).map_or(0, |i| i + 1);
         levels.truncate(last);
-        Geometry { width, height, factor, levels }
+        Geometry { width, height, factor, levels, weight0 }
     }
 
     pub fn working_size(&self) -> (usize, usize) {

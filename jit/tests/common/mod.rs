@@ -1,23 +1,24 @@
 //! Shared helpers for the JIT tests: random programs, random points, comparisons.
 #![allow(dead_code)]
 
+use psc_base::SplitMix64;
+use psc_compiler::ir::random::{non_leaf_op, NON_LEAF_KINDS};
 use psc_compiler::ir::{Builder, NodeId, Op, Output, Program};
 
-/// A tiny deterministic PRNG (splitmix64), so point sets are reproducible from a proptest seed.
-pub struct Rng(pub u64);
+/// [`SplitMix64`] with the ranges these tests draw from, so point sets are reproducible from
+/// a proptest seed.
+pub struct Rng(SplitMix64);
 
 impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Rng(SplitMix64::new(seed))
+    }
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
     /// Uniform in [lo, hi).
     pub fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
-        let t = (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
-        lo + (hi - lo) * t
+        lo + (hi - lo) * self.0.next_f32()
     }
     /// A mix of ordinary, large, tiny and special values.
     pub fn nasty(&mut self) -> f32 {
@@ -45,6 +46,7 @@ pub enum OpSet {
     Exact,
 }
 
+/// `non_leaf_op` kinds of sin, cos, exp, log, pow, atan2.
 const TRANSCENDENTAL: [usize; 6] = [4, 5, 6, 7, 14, 15];
 
 /// Builds a random DAG: `spec` entries are (op kind, operand picks); `consts` seed the leaves.
@@ -64,36 +66,14 @@ pub fn random_program(
         pool.push(b.constant(c));
     }
     for &(kind, x, y, z) in spec {
-        let mut kind = kind as usize % 22;
+        let mut kind = kind as usize % (NON_LEAF_KINDS + 1);
         if set == OpSet::Exact && TRANSCENDENTAL.contains(&kind) {
             kind = [0, 1, 2, 3, 8, 9][kind % 6];
         }
         let pick = |k: u32| pool[k as usize % pool.len()];
         let (a, c, d) = (pick(x), pick(y), pick(z));
-        let op = match kind {
-            0 => Op::Neg(a),
-            1 => Op::Abs(a),
-            2 => Op::Floor(a),
-            3 => Op::Sqrt(a),
-            4 => Op::Sin(a),
-            5 => Op::Cos(a),
-            6 => Op::Exp(a),
-            7 => Op::Log(a),
-            8 => Op::Add(a, c),
-            9 => Op::Sub(a, c),
-            10 => Op::Mul(a, c),
-            11 => Op::Div(a, c),
-            12 => Op::Min(a, c),
-            13 => Op::Max(a, c),
-            14 => Op::Pow(a, c),
-            15 => Op::Atan2(a, c),
-            16 => Op::Hash(a, c),
-            17 => Op::Lt(a, c),
-            18 => Op::Le(a, c),
-            19 => Op::Eq(a, c),
-            20 => Op::Select(a, c, d),
-            _ => Op::Mul(a, a),
-        };
+        // The one kind past the last is a square, so that squares of wide ranges are common.
+        let op = non_leaf_op(kind, a, c, d).unwrap_or(Op::Mul(a, a));
         let id = b.push(op);
         pool.push(id);
     }

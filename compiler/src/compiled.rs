@@ -1,14 +1,11 @@
-//! A compiled graph: its public description (parameters, slots, channels) and forward program.
+//! A compiled graph: its public description (parameters, slots) and forward program, whose
+//! outputs are the [`crate::Channel`]s in order.
 
 use std::path::PathBuf;
 use std::time::Duration;
 
+use crate::diff::reverse::Adjoint;
 use crate::ir::Program;
-
-/// The forward program's outputs, always in this order. `height` is 0 for graphs that give a
-/// `normal` directly; `metallic` is 0 unless the graph sets it.
-pub const CHANNELS: [&str; 9] =
-    ["albedo.r", "albedo.g", "albedo.b", "roughness", "normal.x", "normal.y", "normal.z", "height", "metallic"];
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum ParamKind {
@@ -92,6 +89,9 @@ impl GraphInfo {
 pub struct CompileStats {
     /// Node insertions the lowering asked for, before hash-consing and folding removed any.
     pub requested_nodes: usize,
+    /// The lowering's work: expressions evaluated plus nodes requested, against
+    /// [`crate::lower::MAX_LOWERING_WORK`].
+    pub lowering_work: usize,
     /// Nodes after hash-consing and folding, before dead-code elimination.
     pub nodes_before_dce: usize,
     /// Non-leaf nodes of the final forward program.
@@ -102,14 +102,33 @@ pub struct CompileStats {
 #[derive(Clone, Debug)]
 pub struct CompiledGraph {
     pub info: GraphInfo,
+    /// Outputs: [`crate::Channel::ALL`], in order.
     pub forward: Program,
     pub stats: CompileStats,
 }
 
 impl CompiledGraph {
-    /// The fused forward + adjoint program for the continuous parameters (see
-    /// [`crate::diff::reverse::adjoint`] for its layout).
-    pub fn adjoint(&self) -> Program {
+    /// The fused forward + adjoint program for the continuous parameters, with its layout
+    /// (see [`crate::diff::reverse::AdjointLayout`]).
+    pub fn adjoint(&self) -> Adjoint {
         crate::diff::reverse::adjoint(&self.forward, &self.info.continuous_slots())
+    }
+
+    /// `psc compile --emit ir` for this graph: a header naming it and its file, then the
+    /// forward program ([`Program`]'s `Display`, one node per line).
+    pub fn ir_dump(&self) -> String {
+        format!("; graph {} ({})\n{}", self.info.name, self.info.file.display(), self.forward)
+    }
+
+    /// `psc compile --emit adjoint` for this graph and its `adjoint`: a header, the layout, then
+    /// the fused program.
+    pub fn adjoint_dump(&self, adjoint: &Adjoint) -> String {
+        format!(
+            "; adjoint of graph {} ({})\n; layout: {}\n{}",
+            self.info.name,
+            self.info.file.display(),
+            adjoint.layout,
+            adjoint.program
+        )
     }
 }

@@ -1,13 +1,13 @@
-//! Lowering of expressions, blocks and statements from pest pairs to the AST.
+//! Building expressions, blocks and statements of the AST from pest pairs.
 //!
-//! Every lowered expression also reports its *depth* (the longest chain of nested
+//! Every built expression also reports its *depth* (the longest chain of nested
 //! nodes below it). Bracket nesting is bounded by `scan.rs`, but operator chains
 //! (`a + b + c + …`, `- - - x`, `else if` chains) are not, and a very deep tree would
 //! overflow the stack of whoever walks or even drops it. Beyond [`MAX_EXPR_DEPTH`]
 //! we report an error and cut the tree short.
 
+use super::{AstBuilder, Pair, Pairs};
 use crate::ast::*;
-use crate::lower::{Lowerer, Pair, Pairs};
 use crate::syntax::Rule;
 use pest::pratt_parser::{Assoc, Op, PrattParser};
 use std::sync::LazyLock;
@@ -53,7 +53,7 @@ fn binary_op(rule: Rule) -> BinOp {
     }
 }
 
-impl Lowerer<'_> {
+impl AstBuilder<'_> {
     /// Builds a node one level above children of depth `below`, or a placeholder
     /// (with one error, at the level where the limit is first crossed) when too deep.
     fn node(&self, kind: ExprKind, span: Span, below: usize) -> Deep<Expr> {
@@ -131,9 +131,9 @@ impl Lowerer<'_> {
                 // The parentheses add no node, but the span covers them so that
                 // `(a + b).x` reads naturally in messages.
                 let inner = pair.into_inner().find(|p| p.as_rule() == Rule::expr);
-                let mut lowered = self.expr(inner.expect("grammar: parenthesised expr"));
-                lowered.node.span = span;
-                lowered
+                let mut built = self.expr(inner.expect("grammar: parenthesised expr"));
+                built.node.span = span;
+                built
             }
             Rule::block => {
                 let block = self.block(pair);

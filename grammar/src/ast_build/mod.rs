@@ -1,21 +1,27 @@
-//! Lowering of items and graph members from pest pairs to the AST.
+//! Building the AST from pest's parse tree: items and graph members here, expressions,
+//! blocks and statements in [`expr`]. (This is the grammar's pass, pest pairs → AST; the
+//! compiler's `lower` is the later AST → IR pass.)
 //!
 //! pest has already checked the syntax; what can still go wrong here is what a
 //! grammar cannot express well (literal ranges, argument order, string escapes,
 //! expression depth). Such problems are collected, not returned early, so that one
 //! run reports them all.
 
+mod expr;
+
+pub use expr::MAX_EXPR_DEPTH;
+
 use crate::ast::*;
 use crate::error::ParseError;
-use crate::lower_expr::significant;
 use crate::syntax::Rule;
+use expr::significant;
 use std::cell::RefCell;
 
 pub(crate) type Pair<'i> = pest::iterators::Pair<'i, Rule>;
 pub(crate) type Pairs<'i> = pest::iterators::Pairs<'i, Rule>;
 
-/// Lowers one parsed chunk of a source file.
-pub(crate) struct Lowerer<'s> {
+/// Builds the AST of one parsed chunk of a source file.
+pub(crate) struct AstBuilder<'s> {
     /// The whole source file (doc comments are looked up in it).
     src: &'s str,
     /// Where the parsed chunk starts in `src`: added to every pest offset.
@@ -26,9 +32,9 @@ pub(crate) struct Lowerer<'s> {
     errors: RefCell<Vec<ParseError>>,
 }
 
-impl<'s> Lowerer<'s> {
+impl<'s> AstBuilder<'s> {
     pub(crate) fn new(src: &'s str, base: usize, doc_lines: &'s [Span]) -> Self {
-        Lowerer { src, base, doc_lines, errors: RefCell::new(Vec::new()) }
+        AstBuilder { src, base, doc_lines, errors: RefCell::new(Vec::new()) }
     }
 
     pub(crate) fn into_errors(self) -> Vec<ParseError> {
@@ -59,7 +65,7 @@ impl<'s> Lowerer<'s> {
         Ident { name: pair.as_str().to_owned(), span: self.span(&pair) }
     }
 
-    /// Lowers the `file` pair.
+    /// Builds the items of the `file` pair.
     pub(crate) fn file(&self, file: Pair) -> Vec<Item> {
         file.into_inner().filter(|p| p.as_rule() != Rule::EOI).map(|item| self.item(item)).collect()
     }

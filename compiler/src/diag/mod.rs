@@ -1,11 +1,21 @@
 //! Diagnostics: what went wrong, where (file, byte span), and a hint; rendered with
-//! codespan-reporting as `file:line:col`, the source line, and a caret under the span.
+//! codespan-reporting as `file:line:col`, the source line, and a caret under the span. A source
+//! line longer than [`MAX_SHOWN_LINE`] bytes is shown as a window around the span
+//! (`excerpt.rs`), and messages quoting huge names are shortened, so no input can make a
+//! diagnostic echo kilobytes.
+
+mod excerpt;
+
+pub use excerpt::MAX_SHOWN_LINE;
 
 use codespan_reporting::diagnostic::{Diagnostic as CsDiagnostic, Label};
 use codespan_reporting::files::SimpleFiles;
 use codespan_reporting::term::{self, termcolor};
 
 use psc_grammar::ast::Span;
+
+/// Longest message, label or hint (in bytes) shown whole; longer ones are cut with an ellipsis.
+const MAX_MESSAGE: usize = 400;
 
 /// Index of a file in a [`SourceMap`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -37,22 +47,10 @@ impl SourceMap {
         self.files.get(file.0).map(|f| f.source().as_str()).unwrap_or("")
     }
 
-    /// 1-based line and column (in characters) of a byte offset.
+    /// 1-based line and column (in characters) of a byte offset ([`psc_grammar::line_col`]).
     pub fn line_col(&self, file: FileId, offset: usize) -> (usize, usize) {
-        let text = self.text(file);
-        let offset = offset.min(text.len());
-        let before = &text[..floor_char_boundary(text, offset)];
-        let line = before.matches('\n').count() + 1;
-        let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-        (line, col)
+        psc_grammar::line_col(self.text(file), offset)
     }
-}
-
-fn floor_char_boundary(s: &str, mut i: usize) -> usize {
-    while i > 0 && !s.is_char_boundary(i) {
-        i -= 1;
-    }
-    i
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -122,28 +120,38 @@ impl Diagnostic {
             Severity::Error => CsDiagnostic::error(),
             Severity::Warning => CsDiagnostic::warning(),
         };
-        let mut labels = vec![Label::primary(self.file.0, self.span.start..self.span.end).with_message(&self.label)];
+        let short = |text: &str| excerpt::shorten(text, MAX_MESSAGE).into_owned();
+        let mut labels =
+            vec![Label::primary(self.file.0, self.span.start..self.span.end).with_message(short(&self.label))];
         for (file, span, note) in &self.related {
-            labels.push(Label::secondary(file.0, span.start..span.end).with_message(note));
+            labels.push(Label::secondary(file.0, span.start..span.end).with_message(short(note)));
         }
-        let notes = self.hint.iter().map(|h| format!("hint: {h}")).collect();
-        base.with_message(&self.message).with_labels(labels).with_notes(notes)
+        let notes = self.hint.iter().map(|h| format!("hint: {}", short(h))).collect();
+        base.with_message(short(&self.message)).with_labels(labels).with_notes(notes)
     }
 
     /// Plain text, as in golden tests and when stderr is not a terminal.
     pub fn render(&self, sources: &SourceMap) -> String {
         let config = term::Config::default();
-        let clamped = self.clamped(sources);
-        term::emit_into_string(&config, &sources.files, &clamped.to_codespan())
-            .unwrap_or_else(|_| format!("error: {}\n", self.message))
+        let diagnostic = self.clamped(sources).to_codespan();
+        let rendered = match excerpt::Excerpt::build(sources, &diagnostic) {
+            Some((excerpt, moved)) => term::emit_into_string(&config, &excerpt, &moved),
+            None => term::emit_into_string(&config, &sources.files, &diagnostic),
+        };
+        rendered.unwrap_or_else(|_| format!("error: {}\n", excerpt::shorten(&self.message, MAX_MESSAGE)))
     }
 
     /// Coloured, for a terminal.
     pub fn emit_colored(&self, sources: &SourceMap, out: &mut dyn termcolor::WriteColor) {
         let config = term::Config::default();
-        let clamped = self.clamped(sources);
-        if term::emit_to_write_style(out, &config, &sources.files, &clamped.to_codespan()).is_err() {
-            let _ = std::io::Write::write_fmt(out, format_args!("error: {}\n", self.message));
+        let diagnostic = self.clamped(sources).to_codespan();
+        let written = match excerpt::Excerpt::build(sources, &diagnostic) {
+            Some((excerpt, moved)) => term::emit_to_write_style(out, &config, &excerpt, &moved),
+            None => term::emit_to_write_style(out, &config, &sources.files, &diagnostic),
+        };
+        if written.is_err() {
+            let message = excerpt::shorten(&self.message, MAX_MESSAGE);
+            let _ = std::io::Write::write_fmt(out, format_args!("error: {message}\n"));
         }
     }
 
@@ -151,8 +159,8 @@ impl Diagnostic {
     fn clamped(&self, sources: &SourceMap) -> Diagnostic {
         let clamp = |file: FileId, span: Span| {
             let text = sources.text(file);
-            let start = floor_char_boundary(text, span.start.min(text.len()));
-            let end = floor_char_boundary(text, span.end.min(text.len())).max(start);
+            let start = text.floor_char_boundary(span.start);
+            let end = text.floor_char_boundary(span.end).max(start);
             Span::new(start, end)
         };
         let mut d = self.clone();
