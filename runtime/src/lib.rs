@@ -8,6 +8,8 @@
 //! is the compiler's), generate code (that is the JIT's), or read a scene's ground truth unless
 //! a caller's choice names it.
 
+#![forbid(unsafe_code)]
+
 pub mod assign;
 pub mod bake;
 pub mod json;
