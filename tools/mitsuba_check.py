@@ -272,7 +272,8 @@ def show(name, m):
 
 
 def run_psc(args, extra, out):
-    cmd = [args.psc, "render", args.scene, "--geometry", "truth", "--materials", "truth", "--size", args.size,
+    cmd = [args.psc, "render", args.scene, "--geometry", "truth", "--materials", "truth", "--lights", "truth",
+           "--size", args.size,
            "--quiet", "--out", out] + extra
     c0, t0 = cpu_children(), time.time()
     subprocess.run(cmd, check=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)

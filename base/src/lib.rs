@@ -1,14 +1,23 @@
 //! `psc-base`: the one copy of small, domain-free helpers that crates on both sides of the
 //! workspace need (the compiler chain and the image chain share no other crate).
 //!
-//! Owns: deterministic random numbers ([`SplitMix64`], [`mix64`]); the one folder walker
+//! Owns: deterministic random numbers ([`SplitMix64`], [`mix64`]); the sRGB transfer and
+//! luminance ([`color`]); outputs that appear whole or
+//! not at all ([`output`]: atomic file writes, staged output folders, removal of temporaries on
+//! error, drop, SIGINT and SIGTERM); resource limits ([`limits`]: pixels, texels, samples,
+//! threads, variants and a memory budget, checked before allocating); progress reporting that
+//! any crate can call and only the command line draws ([`progress`]); the one folder walker
 //! ([`walk::files_with_extension`]: follows links, never loops, lists each real file once).
 //!
-//! Must never: depend on another photoscene crate or on anything but `std`; know about graphs,
-//! kernels, scenes or images.
+//! Must never: depend on another photoscene crate or on anything but `std` and `ctrlc` (the
+//! signal handler of [`output`]); know about graphs, kernels, scenes or images.
 
 #![forbid(unsafe_code)]
 
+pub mod color;
+pub mod limits;
+pub mod output;
+pub mod progress;
 pub mod walk;
 
 /// SplitMix64 finaliser: a good 64-bit mixing function.

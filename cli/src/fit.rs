@@ -3,18 +3,19 @@
 //! `psc-fit`.
 
 use std::collections::BTreeMap;
-use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+use psc_base::progress::Progress as _;
 use psc_fit::output::{self, OutputOptions};
 use psc_fit::pipeline::{fit_scene, FitOptions, Progress};
 use psc_render::scene::{LightRadiances, Scene};
 use psc_runtime::library::{default_library_root, Library};
 
-use crate::Failure;
+use crate::progress::Drawer;
+use crate::{checks, Failure};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -37,8 +38,8 @@ pub struct Args {
     lib: Option<PathBuf>,
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads (default: all cores; at most 256).
+    #[arg(long, value_parser = checks::parse_threads)]
     threads: Option<usize>,
     /// Random exemplars per graph for selection.
     #[arg(long, default_value_t = 10)]
@@ -65,28 +66,31 @@ fn parse_pair(s: &str) -> Result<(String, String), String> {
     Ok((a.to_string(), b.to_string()))
 }
 
-/// Progress as log lines on stderr: a line per stage and per finished part.
-struct LineProgress {
-    quiet: bool,
-    started: Instant,
-    stage: Mutex<(String, u64, u64)>,
+/// The fit's stages and notes drawn by the command line's progress drawer.
+struct FitProgress<'a> {
+    drawer: &'a Drawer,
+    open: AtomicBool,
 }
 
-impl Progress for LineProgress {
+impl Progress for FitProgress<'_> {
     fn stage(&self, name: &str, total: u64) {
-        *self.stage.lock().unwrap_or_else(|e| e.into_inner()) = (name.to_string(), total, 0);
-        if !self.quiet {
-            eprintln!("[{:>6.1} s] {name} ({total})", self.started.elapsed().as_secs_f64());
+        if self.open.swap(true, Ordering::Relaxed) {
+            self.drawer.finish();
         }
+        self.drawer.start(name, Some(total), "steps");
     }
     fn advance(&self, steps: u64) {
-        let mut s = self.stage.lock().unwrap_or_else(|e| e.into_inner());
-        s.2 += steps;
+        self.drawer.advance(steps);
     }
     fn note(&self, text: &str) {
-        if !self.quiet {
-            let s = self.stage.lock().unwrap_or_else(|e| e.into_inner());
-            eprintln!("[{:>6.1} s] {} {}/{}: {text}", self.started.elapsed().as_secs_f64(), s.0, s.2 + 1, s.1);
+        self.drawer.line(text);
+    }
+}
+
+impl FitProgress<'_> {
+    fn done(&self) {
+        if self.open.swap(false, Ordering::Relaxed) {
+            self.drawer.finish();
         }
     }
 }
@@ -117,11 +121,8 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     options.forced = args.graphs.iter().cloned().collect::<BTreeMap<_, _>>();
     options.select.exemplars = args.exemplars;
     options.fit.max_iterations = args.iterations;
-    let progress = LineProgress {
-        quiet: args.quiet || !std::io::stderr().is_terminal() && false,
-        started,
-        stage: Mutex::new((String::new(), 0, 0)),
-    };
+    let drawer = Drawer::new(args.quiet);
+    let progress = FitProgress { drawer: &drawer, open: AtomicBool::new(false) };
     let result = fit_scene(&scene, &library, radiances.as_ref(), &options, &progress)?;
     let output_options = OutputOptions {
         texture_size: args.texture_size,
@@ -132,6 +133,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     };
     progress.stage("write results", 1);
     output::write(&args.out, &scene, &library, &result, &output_options)?;
+    progress.done();
     if !args.quiet {
         eprintln!(
             "fitted {} parts in {:.1} s; wrote {}",

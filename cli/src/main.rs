@@ -6,10 +6,12 @@
 
 mod bake;
 mod bench;
+mod checks;
 mod compile;
 mod eval;
 mod fit;
 mod library;
+mod progress;
 mod render;
 
 use std::process::ExitCode;
@@ -41,12 +43,41 @@ enum Command {
     Eval(eval::Args),
 }
 
-/// An error already worth showing to the user as is.
+/// Bad input (a file, a scene, a graph): worth showing to the user as is; exit 1.
 pub struct Failure(pub String);
 
 impl<E: std::fmt::Display> From<E> for Failure {
     fn from(e: E) -> Self {
         Failure(e.to_string())
+    }
+}
+
+/// A command line that makes no sense (an option's value, or options that exclude each other):
+/// exit 2, as for clap's own parse errors. The message names the option, what was expected and
+/// what was given.
+pub struct Usage(pub String);
+
+/// Either kind of error, for commands that can give both.
+pub enum Error {
+    Input(Failure),
+    Usage(Usage),
+}
+
+impl<E: std::fmt::Display> From<E> for Error {
+    fn from(e: E) -> Self {
+        Error::Input(Failure(e.to_string()))
+    }
+}
+
+impl From<Failure> for Error {
+    fn from(f: Failure) -> Self {
+        Error::Input(f)
+    }
+}
+
+impl From<Usage> for Error {
+    fn from(u: Usage) -> Self {
+        Error::Usage(u)
     }
 }
 
@@ -66,20 +97,24 @@ fn restore_default_sigpipe() {}
 fn main() -> ExitCode {
     restore_default_sigpipe();
     let cli = Cli::parse();
-    let result = match cli.command {
-        Command::Compile(args) => compile::run(args),
-        Command::Bench(args) => bench::run(args),
+    let result: Result<ExitCode, Error> = match cli.command {
+        Command::Compile(args) => compile::run(args).map_err(Error::from),
+        Command::Bench(args) => bench::run(args).map_err(Error::from),
         Command::Bake(args) => bake::run(args),
         Command::Library(args) => library::run(args),
         Command::Render(args) => render::run(args),
-        Command::Fit(args) => fit::run(args),
-        Command::Eval(args) => eval::run(args),
+        Command::Fit(args) => fit::run(args).map_err(Error::from),
+        Command::Eval(args) => eval::run(args).map_err(Error::from),
     };
     match result {
         Ok(code) => code,
-        Err(Failure(message)) => {
+        Err(Error::Input(Failure(message))) => {
             eprintln!("error: {message}");
             ExitCode::from(1)
+        }
+        Err(Error::Usage(Usage(message))) => {
+            eprintln!("error: {message}");
+            ExitCode::from(2)
         }
     }
 }

@@ -1,19 +1,20 @@
 //! `psc render`: path-traced images, G-buffers, per-pixel light grids and per-light renders of a
-//! scene folder. A thin layer over `psc-render`.
+//! scene folder. Parses the options into a `psc_runtime::view::ViewRequest`, opens the view
+//! there, and renders through `psc-render`.
 //!
-//! Light radiances, in order: `--lights lights.json`, else `truth/truth.json` next to the scene
-//! (a dev convenience for validation; the fit itself never reads truth/), else unit radiance.
+//! Light radiances: `--lights lights.json`, or `--lights truth` (a dev scene's true radiances,
+//! for validation), else every light at unit radiance (said on stderr).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use psc_render::camera::{load_camera_file, Camera};
-use psc_render::{
-    compute_light_grid, image_io, render_gbuffer, truth, LightGridOptions, LightRadiances, RenderOptions, Renderer,
-    Scene,
-};
+use psc_render::{compute_light_grid_with_progress, image_io, LightGridOptions, LightsSource, RenderOptions, Renderer};
+use psc_runtime::view::{open_view, CameraChoice, GeometryChoice, MaterialsChoice, OpenedView, ViewRequest};
 
-use crate::Failure;
+use psc_base::output::Replace;
+
+use crate::progress::Drawer;
+use crate::{checks, Error, Failure, Usage};
 
 #[derive(clap::ValueEnum, Clone, Copy, PartialEq, Eq, Debug)]
 pub enum Materials {
@@ -41,26 +42,28 @@ pub struct Args {
     /// Camera JSON: {"position", "look_at", "up", "fov_y_deg"} or {"camera": {...}}, optional width/height.
     #[arg(long)]
     camera: Option<PathBuf>,
-    /// Samples per pixel.
-    #[arg(long, default_value_t = 64)]
+    /// Samples per pixel (at most 65 536).
+    #[arg(long, default_value_t = 64, value_parser = checks::parse_spp)]
     spp: u32,
     /// Image size WxH (default: the view's photo, or the camera file's size).
-    #[arg(long, value_parser = parse_size)]
+    #[arg(long, value_parser = checks::parse_size)]
     size: Option<(usize, usize)>,
     /// Output: an image (.exr linear, .png sRGB), or a folder with --gbuffer/--light-grid/--per-light.
     #[arg(long)]
     out: Option<PathBuf>,
     /// Write G-buffers (part id, uv, normals, tangent frame, depth, position) into the --out folder.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["light_grid", "per_light", "bench"])]
     gbuffer: bool,
     /// Write the per-pixel incoming-light grid (lightgrid.json + lightgrid.bin) into the --out folder.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "bench")]
     light_grid: bool,
     /// One image per light (and the environment) at unit radiance into the --out folder; with
     /// --light-grid, one grid per light in the same file.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "bench")]
     per_light: bool,
-    /// Light radiances: {"lights": [{"name", "radiance_rgb"}], "environment_scale"}.
+    /// Light radiances: a file {"lights": [{"name", "radiance_rgb"}], "environment_scale"}, or
+    /// `truth` for a dev scene's true radiances (validation only; `./truth` for a file of that
+    /// name). Without it, every light has unit radiance.
     #[arg(long)]
     lights: Option<PathBuf>,
     #[arg(long, value_enum, default_value_t = Materials::Mtl)]
@@ -76,17 +79,17 @@ pub struct Args {
     geometry: Geometry,
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads (default: all cores; at most 256).
+    #[arg(long, value_parser = checks::parse_threads)]
     threads: Option<usize>,
-    /// Path depth, Mitsuba convention (1 = emitters only, 2 = direct light).
-    #[arg(long, default_value_t = 6)]
+    /// Path depth, Mitsuba convention (1 = emitters only, 2 = direct light), at most 1024.
+    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=1024))]
     max_depth: u32,
     /// Light grid: one cell every N pixels.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     grid_stride: usize,
     /// Light grid: paths per hemisphere bin.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = checks::parse_grid_samples)]
     grid_samples: u32,
     /// Print throughput: primary rays/s, path rays/s and the render time.
     #[arg(long)]
@@ -94,96 +97,113 @@ pub struct Args {
     /// Validation only: Lambertian shading (the specular lobe off), to compare with Mitsuba's `diffuse`.
     #[arg(long)]
     diffuse_only: bool,
-    /// No progress bar.
+    /// No progress (bars on a terminal, else a line log on stderr).
     #[arg(long)]
     quiet: bool,
+    /// Replace an existing --out folder (G-buffers, light grid, per-light images) whole.
+    #[arg(long)]
+    force: bool,
 }
 
-fn parse_size(s: &str) -> Result<(usize, usize), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WxH, e.g. 320x240")?;
-    let w: usize = w.trim().parse().map_err(|_| "bad width")?;
-    let h: usize = h.trim().parse().map_err(|_| "bad height")?;
-    if w == 0 || h == 0 {
-        return Err("size must be positive".into());
+/// The options as a request for the runtime.
+fn view_request(args: &Args) -> ViewRequest {
+    ViewRequest {
+        scene: args.scene.clone(),
+        geometry: match args.geometry {
+            Geometry::Model => GeometryChoice::Model,
+            Geometry::Truth => GeometryChoice::Truth,
+        },
+        camera: match (&args.camera, &args.view) {
+            (Some(file), _) => CameraChoice::File(file.clone()),
+            (None, Some(view)) => CameraChoice::View(view.clone()),
+            (None, None) => CameraChoice::FirstView,
+        },
+        size: args.size,
+        materials: match args.materials {
+            Materials::Mtl => MaterialsChoice::Mtl,
+            Materials::Truth => MaterialsChoice::Truth,
+        },
+        assign: args.assign.clone(),
+        library: args.lib.clone(),
+        lights: LightsSource::from_arg(args.lights.as_deref()),
     }
-    Ok((w, h))
 }
 
-pub fn run(args: Args) -> Result<ExitCode, Failure> {
-    let mesh_override = match args.geometry {
-        Geometry::Model => None,
-        Geometry::Truth => Some(truth::truth_mesh(&args.scene).ok_or("no truth/scene_true.obj next to the scene")?),
-    };
-    let scene = Scene::load_with_mesh(&args.scene, mesh_override.as_deref())?;
-    let mut warnings = scene.warnings.clone();
+/// What is written where, decided from the options before any work is done.
+enum Output {
+    Image(PathBuf),
+    Folder(PathBuf),
+    /// `--bench` without `--out`: only figures are printed.
+    Nothing,
+}
 
-    // Camera and size.
-    let (spec, default_size, context) = if let Some(path) = &args.camera {
-        let file = load_camera_file(path)?;
-        let size = file.size.or_else(|| scene.views.first().map(|v| (v.width, v.height))).unwrap_or((640, 480));
-        (file.camera, size, path.display().to_string())
+fn output(args: &Args) -> Result<Output, Error> {
+    let folder_mode = args.gbuffer || args.light_grid || args.per_light;
+    match (&args.out, folder_mode) {
+        (None, _) if args.bench => Ok(Output::Nothing),
+        (None, true) => Err(Usage("--out: required; expected the folder to write into".into()).into()),
+        (None, false) => {
+            Err(Usage("--out: required; expected an image path ending in .png (sRGB) or .exr (linear)".into()).into())
+        }
+        (Some(p), true) => {
+            checks::new_folder("--out", p, replace(args))?;
+            Ok(Output::Folder(p.clone()))
+        }
+        (Some(p), false) => {
+            checks::image_path("--out", p, &["png", "exr"])?;
+            Ok(Output::Image(p.clone()))
+        }
+    }
+}
+
+fn replace(args: &Args) -> Replace {
+    if args.force {
+        Replace::Yes
     } else {
-        let view = match &args.view {
-            Some(name) => scene.view(name).ok_or_else(|| {
-                let names: Vec<&str> = scene.views.iter().map(|v| v.name.as_str()).collect();
-                format!("no view '{name}' (views: {})", names.join(", "))
-            })?,
-            None => scene.views.first().ok_or("the scene has no views; give --camera")?,
-        };
-        (view.camera_spec.clone(), (view.width, view.height), format!("view '{}'", view.name))
-    };
-    let (width, height) = args.size.unwrap_or(default_size);
-    let camera = Camera::new(&spec, width, height, &context)?;
-
-    let mut materials = match args.materials {
-        Materials::Mtl => scene.mtl_materials(&mut warnings),
-        Materials::Truth => truth::truth_materials(&scene, &mut warnings)?,
-    };
-    if let Some(assign) = &args.assign {
-        let root = args.lib.clone().unwrap_or_else(psc_runtime::library::default_library_root);
-        let library = psc_runtime::library::Library::load(&root)?;
-        psc_runtime::assign::apply_assignment(assign, &library, &scene.mesh.part_names, &mut materials)?;
+        Replace::No
     }
-    let radiances = LightRadiances::resolve(&scene, args.lights.as_deref(), &mut warnings)?;
+}
+
+pub fn run(args: Args) -> Result<ExitCode, Error> {
+    let output = output(&args)?;
+    let drawer = Drawer::new(args.quiet || args.bench);
+    let OpenedView { scene, camera, width, height, materials, radiances, warnings } =
+        open_view(&view_request(&args), None, &drawer)?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }
     if !args.quiet {
         eprintln!("lights: {}", radiances.source);
     }
-    let renderer = Renderer::new(&scene, materials, &radiances)?;
-    let out = args.out.clone();
-    let need_out = || out.clone().ok_or_else(|| Failure("--out is required".into()));
+    let renderer = Renderer::new_with_progress(&scene, materials, &radiances, &drawer)?;
+    let replace = replace(&args);
+    let folder = || match &output {
+        Output::Folder(dir) => Ok(dir.clone()),
+        _ => Err(Failure("internal: no output folder for a folder output".into())),
+    };
 
     if args.gbuffer {
-        let dir = need_out()?;
-        let gb = render_gbuffer(
-            &renderer.geometry,
-            &camera,
-            &renderer.part_names,
-            &renderer.lights.names,
-            Some(&renderer.materials),
-        );
-        gb.save(&dir)?;
+        let dir = folder()?;
+        let gb = renderer.gbuffer(&camera)?;
+        gb.write_folder(&dir, replace)?;
         eprintln!("wrote G-buffers ({width}x{height}) to {}", dir.display());
         return Ok(ExitCode::SUCCESS);
     }
     if args.light_grid {
-        let dir = need_out()?;
+        let dir = folder()?;
         let opts = LightGridOptions {
             stride: args.grid_stride,
             samples_per_bin: args.grid_samples,
             seed: args.seed,
             max_depth: args.max_depth,
             threads: args.threads,
-            progress: !args.quiet,
             per_light: args.per_light,
             diffuse_only: args.diffuse_only,
             ..Default::default()
         };
         let start = std::time::Instant::now();
-        let grid = compute_light_grid(&renderer, &camera, &opts)?;
-        grid.save(&dir)?;
+        let grid = compute_light_grid_with_progress(&renderer, &camera, &opts, &drawer)?;
+        grid.write_folder(&dir, replace)?;
         eprintln!(
             "wrote a {}x{} light grid (8x16 bins) to {} in {:.2} s",
             grid.grid_width,
@@ -201,7 +221,6 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         seed: args.seed,
         max_depth: args.max_depth,
         threads: args.threads,
-        progress: !args.quiet && !args.bench,
         per_light: args.per_light,
         diffuse_only: args.diffuse_only,
         ..Default::default()
@@ -229,28 +248,23 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
             result.seconds,
             (width * height) as f64 * args.spp as f64 / result.seconds / 1e6
         );
-        if let Some(path) = &out {
+        if let Output::Image(path) = &output {
             image_io::write_rgb(path, width, height, &result.image)?;
         }
         return Ok(ExitCode::SUCCESS);
     }
-    let result = renderer.render(&camera, &opts)?;
+    let result = renderer.render_with_progress(&camera, &opts, &drawer)?;
     if args.per_light {
-        let dir = need_out()?;
-        std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-        for (name, img) in &result.per_light {
-            image_io::write_rgb(&dir.join(format!("{name}.exr")), width, height, img)?;
-        }
-        image_io::write_rgb(&dir.join("combined.exr"), width, height, &result.image)?;
+        let dir = folder()?;
+        result.write_per_light_folder(&dir, replace)?;
         eprintln!(
             "wrote {} per-light images (unit radiance) and combined.exr to {} in {:.2} s",
             result.per_light.len(),
             dir.display(),
             result.seconds
         );
-    } else {
-        let path = need_out()?;
-        image_io::write_rgb(&path, width, height, &result.image)?;
+    } else if let Output::Image(path) = &output {
+        image_io::write_rgb(path, width, height, &result.image)?;
         eprintln!("wrote {} ({width}x{height}, {} spp) in {:.2} s", path.display(), args.spp, result.seconds);
     }
     Ok(ExitCode::SUCCESS)

@@ -77,7 +77,8 @@ fn missing_inputs_are_errors_not_panics() {
 
 #[test]
 fn bake_writes_every_map_and_random_variants() {
-    let dir = scratch("bake");
+    let scratch_dir = scratch("bake");
+    let dir = scratch_dir.join("maps");
     let out = psc(&["bake", "knit", "--size", "16", "--random", "2", "--seed", "3", "--out", dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let mut names: Vec<String> =
@@ -90,7 +91,7 @@ fn bake_writes_every_map_and_random_variants() {
             "{suffix} for defaults + 2 variants in {names:?}"
         );
     }
-    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(&scratch_dir);
 }
 
 #[test]

@@ -9,8 +9,9 @@ use std::path::{Path, PathBuf};
 
 use psc_render::scene::Scene;
 use psc_render::{image_io, RenderOptions, Renderer};
-use psc_runtime::bake::{bake, params_to_json, write_maps};
+use psc_runtime::bake::{bake, write_maps};
 use psc_runtime::library::Library;
+use psc_runtime::params::ParamSpace;
 use serde_json::{json, Value};
 
 use crate::error::FitError;
@@ -47,7 +48,7 @@ pub fn assignment_entry(library: &Library, p: &PartResult) -> Value {
     let k = p.state.uv.scale();
     json!({
         "graph": p.graph,
-        "params": params_to_json(info, &p.state.params),
+        "params": ParamSpace::new(info).to_json(&p.state.params).expect("fitted vectors have the graph's length"),
         "uv_scale": [k, k],
         "uv_offset": p.state.uv.offset,
         "uv_rotation_deg": p.state.uv.rotation.to_degrees(),

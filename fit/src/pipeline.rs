@@ -239,7 +239,7 @@ pub fn fit_scene(
         .views
         .iter()
         .map(|v| {
-            let obs = ViewObservation::new(v, &scene.mesh.part_names, &renderer.geometry);
+            let obs = ViewObservation::new(v, &scene.mesh.part_names, &renderer.geometry());
             progress.advance(1);
             obs
         })
@@ -248,7 +248,7 @@ pub fn fit_scene(
     lap("observe and align", &mut timings);
 
     // Lighting: the other parts' materials for the indirect light are their pixel medians.
-    renderer.materials = lighting::median_materials(&views, n_parts);
+    renderer.set_materials(lighting::median_materials(&views, n_parts))?;
     let n_slots = renderer.n_slots();
     let (radiance, light_source) = match radiances {
         Some(r) => {
@@ -288,9 +288,9 @@ pub fn fit_scene(
     }
     lap("fit parts", &mut timings);
 
-    let mut result = FitResult { parts, slot_names: renderer.slot_names.clone(), radiance, light_source, timings };
+    let mut result = FitResult { parts, slot_names: renderer.slot_names().to_vec(), radiance, light_source, timings };
     for round in 0..options.refit_rounds {
-        renderer.materials = result.bindings(library)?;
+        renderer.set_materials(result.bindings(library)?)?;
         if radiances.is_none() {
             progress.stage("re-estimate lights", views.len() as u64);
             let renders = lighting::unit_renders(&renderer, &views, options.seed ^ 0x5eed_0001)?;
@@ -376,7 +376,7 @@ fn fit_one_part(
     for (v, list) in aligned.iter().enumerate() {
         let Some(a) = list.iter().find(|a| a.part == part && !a.usable.is_empty()) else { continue };
         let obs = &views[v];
-        let Some(view) = part_view(obs, a, &renderer.geometry, &obs.camera, &shading[v], options.search_pixels, 1.0)
+        let Some(view) = part_view(obs, a, &renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, 1.0)
         else {
             continue;
         };
@@ -413,7 +413,7 @@ fn fit_one_part(
         return Ok(result);
     }
     let fit_view =
-        part_view(obs, chosen, &renderer.geometry, &obs.camera, &shading[chosen.view], options.fit_pixels, 1.0)
+        part_view(obs, chosen, &renderer.geometry(), &obs.camera, &shading[chosen.view], options.fit_pixels, 1.0)
             .expect("the search view of the same pixels exists");
     result.pixels.fitted = fit_view.pixels.len();
     let mut scratch = Scratch::default();
@@ -495,15 +495,13 @@ fn refit_appearance(
     let obs = &views[v];
     let mut ws = Workspace::default();
     if part.status == PartStatus::Homogeneous {
-        if let Some(view) = part_view(obs, a, &renderer.geometry, &obs.camera, &shading[v], options.search_pixels, 1.0)
-        {
+        if let Some(view) = part_view(obs, a, &renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, 1.0) {
             let colour = flat_colour(homogeneous, &view, &mut ws)?;
             part.state = flat_state(homogeneous, colour, part.state.roughness);
         }
         return Ok(());
     }
-    let Some(fit_view) = part_view(obs, a, &renderer.geometry, &obs.camera, &shading[v], options.fit_pixels, 1.0)
-    else {
+    let Some(fit_view) = part_view(obs, a, &renderer.geometry(), &obs.camera, &shading[v], options.fit_pixels, 1.0) else {
         return Ok(());
     };
     let material = library.get(&part.graph).expect("fitted graphs come from the library");
@@ -525,7 +523,7 @@ fn refit_appearance(
 }
 
 fn part_index(renderer: &Renderer, name: &str) -> usize {
-    renderer.part_names.iter().position(|p| p == name).expect("parts come from the scene")
+    renderer.part_names().iter().position(|p| p == name).expect("parts come from the scene")
 }
 
 /// The homogeneous graph at linear colour `albedo` (values above 1 stay in the albedo scale).

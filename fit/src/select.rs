@@ -73,8 +73,8 @@ impl Selection {
 
 /// Random parameters and UV for exemplar `e` of graph `g` (deterministic in the seed).
 fn exemplar_state(material: &Material, seed: u64) -> (MaterialState, f32) {
-    let mut rng = psc_runtime::bake::Rng(seed);
-    let params = psc_runtime::bake::random_params(&material.graph.info, &mut rng);
+    let mut rng = psc_base::SplitMix64::new(seed);
+    let params = psc_runtime::params::ParamSpace::new(&material.graph.info).random(&mut rng);
     let mut r = SplitMix64::new(mix64(seed ^ 0xa11ce));
     let uv = UvTransform {
         rotation: r.next_f32() * std::f32::consts::TAU,

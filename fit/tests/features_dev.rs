@@ -249,7 +249,7 @@ fn cases_of_scene(name: &str, dir: &Path, cap: usize) -> Vec<Case> {
         let (w, h) = (view.width, view.height);
         let labels = &view.labels.as_ref().unwrap().data;
         let camera2 = Camera::new(&view.camera_spec, 2 * w, 2 * h, "test").unwrap();
-        let gb = render_gbuffer(&renderer.geometry, &camera2, &renderer.part_names, &renderer.lights.names, None);
+        let gb = render_gbuffer(renderer.geometry(), &camera2, renderer.part_names(), &renderer.lights().names, None).unwrap();
         for part in truth["parts"].as_array().unwrap() {
             let kind = part["kind"].as_str().unwrap();
             if !matches!(kind, "stripes" | "planks" | "photo" | "plaster") {
@@ -257,7 +257,7 @@ fn cases_of_scene(name: &str, dir: &Path, cap: usize) -> Vec<Case> {
             }
             let pname = part["name"].as_str().unwrap();
             let Some((&label, _)) = view.part_labels.iter().find(|(_, n)| n.as_str() == pname) else { continue };
-            let pid = renderer.part_names.iter().position(|n| n == pname).unwrap() as u16 + 1;
+            let pid = renderer.part_names().iter().position(|n| n == pname).unwrap() as u16 + 1;
             let sub = |x: usize, y: usize| -> [usize; 4] {
                 let (x2, y2, w2) = (2 * x, 2 * y, 2 * w);
                 [y2 * w2 + x2, y2 * w2 + x2 + 1, (y2 + 1) * w2 + x2, (y2 + 1) * w2 + x2 + 1]

@@ -35,10 +35,11 @@ fn main() {
     let mut warnings = Vec::new();
     let materials =
         truth::truth_materials(&scene, &mut warnings).unwrap_or_else(|_| scene.mtl_materials(&mut warnings));
-    let radiances = LightRadiances::resolve(&scene, None, &mut warnings).expect("radiances");
+    let radiances =
+        LightRadiances::resolve(&scene, &psc_render::LightsSource::Truth, &mut warnings).expect("radiances");
     let r = Renderer::new(&scene, materials, &radiances).expect("renderer");
     let load = (t0.elapsed().as_secs_f64(), cpu_seconds() - c0);
-    let cam = rescale(&scene.views[0].camera, w, h);
+    let cam = rescale(&scene.views[0].camera, w, h).expect("camera");
 
     let c1 = cpu_seconds();
     let (primary, p_wall) = r.primary_ray_benchmark(&cam, 16, threads).expect("bench");

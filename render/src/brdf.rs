@@ -1,4 +1,5 @@
-//! The shading layer: the Karis microfacet BRDF exactly as the fit's shading layer uses it.
+//! The shading layer: the Karis microfacet BRDF, the one definition the path tracer, the
+//! contact sheet and the fit use.
 //!
 //! `f(wo, wi) = albedo/π + D·F·G / (4 (n·wo)(n·wi))` with
 //! * α = r², `D = α² / (π ((n·h)²(α²−1) + 1)²)` (GGX),
@@ -10,35 +11,163 @@
 //! two-sided surfaces). Roughness is clamped to [`MIN_ROUGHNESS`, 1] to keep D finite.
 //! Sampling mixes a cosine lobe and GGX `D(h)(n·h)` half-vector sampling; [`Karis::pdf`] is the
 //! exact density of [`Karis::sample`] (solid angle measure).
+//!
+//! The formulas are written once, generic over [`Real`] (`f32` to render and fit, `f64` to check
+//! derivatives without f32 cancellation); [`grad`] gives their exact derivatives with respect to
+//! the roughness, the cosines and the normal. [`KarisWo`], the path tracer's per-hit form, hoists
+//! the terms that depend on `wo` alone out of the same arithmetic, so its values are
+//! bit-identical (tested).
 
 use glam::Vec3;
 use std::f32::consts::PI;
+use std::ops::{Add, Div, Mul, Neg, Sub};
+
+pub mod grad;
+
+pub use grad::{f_cos_grad, specular_cos_grad, specular_grad, FCosGrad, SpecularGrad};
 
 /// Specular reflectance at normal incidence (Mitsuba `principled` with `specular = 0.625`).
 pub const F0: f32 = 0.05;
 /// Smallest roughness the BRDF accepts; smaller values are clamped (α = 4e-4).
 pub const MIN_ROUGHNESS: f32 = 0.02;
 
+/// The scalar the BRDF formulas are generic over. Only `f32` and `f64` implement it; constants
+/// enter through [`Real::lit`] as the f32 values the renderer uses, so the `f64` instance is the
+/// same function evaluated more precisely.
+pub trait Real:
+    Copy
+    + PartialOrd
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+{
+    fn lit(x: f32) -> Self;
+    fn exp2(self) -> Self;
+    fn sqrt(self) -> Self;
+    fn is_finite(self) -> bool;
+}
+
+impl Real for f32 {
+    #[inline(always)]
+    fn lit(x: f32) -> Self {
+        x
+    }
+    #[inline(always)]
+    fn exp2(self) -> Self {
+        f32::exp2(self)
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        f32::sqrt(self)
+    }
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        f32::is_finite(self)
+    }
+}
+
+impl Real for f64 {
+    #[inline(always)]
+    fn lit(x: f32) -> Self {
+        x as f64
+    }
+    #[inline(always)]
+    fn exp2(self) -> Self {
+        f64::exp2(self)
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        f64::is_finite(self)
+    }
+}
+
 /// Karis' spherical-Gaussian Schlick Fresnel, `v_h` = cos of the angle between v and h.
 #[inline]
-pub fn fresnel(v_h: f32) -> f32 {
-    F0 + (1.0 - F0) * ((-5.55473 * v_h - 6.98316) * v_h).exp2()
+pub fn fresnel<T: Real>(v_h: T) -> T {
+    T::lit(F0) + (T::lit(1.0) - T::lit(F0)) * ((T::lit(-5.55473) * v_h - T::lit(6.98316)) * v_h).exp2()
 }
 
 /// GGX normal distribution with α = r².
 #[inline]
-pub fn ggx_d(n_h: f32, roughness: f32) -> f32 {
+pub fn ggx_d<T: Real>(n_h: T, roughness: T) -> T {
     let a = roughness * roughness;
     let a2 = a * a;
-    let d = n_h * n_h * (a2 - 1.0) + 1.0;
-    a2 / (PI * d * d)
+    let d = n_h * n_h * (a2 - T::lit(1.0)) + T::lit(1.0);
+    a2 / (T::lit(PI) * d * d)
+}
+
+/// The masking constant k = (r+1)²/8 of [`g1`].
+#[inline]
+pub fn masking_k<T: Real>(roughness: T) -> T {
+    (roughness + T::lit(1.0)) * (roughness + T::lit(1.0)) / T::lit(8.0)
 }
 
 /// Schlick-GGX masking for one direction with k = (r+1)²/8.
 #[inline]
-pub fn g1(x: f32, roughness: f32) -> f32 {
-    let k = (roughness + 1.0) * (roughness + 1.0) / 8.0;
-    x / (x * (1.0 - k) + k)
+pub fn g1<T: Real>(x: T, roughness: T) -> T {
+    let k = masking_k(roughness);
+    x / (x * (T::lit(1.0) - k) + k)
+}
+
+/// The roughness the BRDF uses for a material's roughness `r`: clamped to
+/// [[`MIN_ROUGHNESS`], 1]; non-finite values become 1. Its derivative is 1 inside the range and
+/// 0 outside.
+#[inline]
+pub fn clamp_roughness(r: f32) -> f32 {
+    if r.is_finite() {
+        r.clamp(MIN_ROUGHNESS, 1.0)
+    } else {
+        1.0
+    }
+}
+
+/// The cosines the BRDF depends on: n·v, n·l, n·h and v·h, with h = normalize(v + l).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cosines<T> {
+    pub n_v: T,
+    pub n_l: T,
+    pub n_h: T,
+    pub v_h: T,
+}
+
+impl<T: Real> Cosines<T> {
+    /// From unit vectors `n` (normal), `v` (towards the viewer) and `l` (towards the light);
+    /// v·h is clamped at 0 as in [`Karis::specular`]. Also returns h.
+    #[inline]
+    pub fn new(n: [T; 3], v: [T; 3], l: [T; 3]) -> (Self, [T; 3]) {
+        let s = [v[0] + l[0], v[1] + l[1], v[2] + l[2]];
+        // As glam's normalize: times the reciprocal length (the same bits as the path tracer).
+        let inv_len = T::lit(1.0) / dot(s, s).sqrt();
+        let h = [s[0] * inv_len, s[1] * inv_len, s[2] * inv_len];
+        let v_h = dot(v, h);
+        let v_h = if v_h > T::lit(0.0) { v_h } else { T::lit(0.0) };
+        (Cosines { n_v: dot(n, v), n_l: dot(n, l), n_h: dot(n, h), v_h }, h)
+    }
+}
+
+#[inline(always)]
+pub(crate) fn dot<T: Real>(a: [T; 3], b: [T; 3]) -> T {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The specular term `D·F·G / (4 n·v n·l)` of the cosines (0 unless n·v > 0 and n·l > 0);
+/// `roughness` is used as given (see [`clamp_roughness`]).
+#[inline]
+pub fn specular<T: Real>(c: Cosines<T>, roughness: T) -> T {
+    let zero = T::lit(0.0);
+    if !(c.n_v > zero) || !(c.n_l > zero) {
+        return zero;
+    }
+    let d = ggx_d(c.n_h, roughness);
+    let f = fresnel(c.v_h);
+    let g = g1(c.n_v, roughness) * g1(c.n_l, roughness);
+    d * f * g / (T::lit(4.0) * c.n_v * c.n_l)
 }
 
 /// An orthonormal frame; `n` is the local z axis.
@@ -98,13 +227,12 @@ pub struct Karis {
 
 #[inline]
 fn luminance(c: Vec3) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+    psc_base::color::luminance(c.to_array())
 }
 
 impl Karis {
     pub fn new(albedo: Vec3, roughness: f32) -> Self {
-        let roughness = if roughness.is_finite() { roughness.clamp(MIN_ROUGHNESS, 1.0) } else { 1.0 };
-        Karis { albedo: albedo.max(Vec3::ZERO), roughness, specular_weight: 1.0 }
+        Karis { albedo: albedo.max(Vec3::ZERO), roughness: clamp_roughness(roughness), specular_weight: 1.0 }
     }
 
     /// Lambertian only (validation): the specular lobe switched off.
@@ -120,10 +248,9 @@ impl Karis {
         }
         let h = (wo + wi).normalize();
         let v_h = wo.dot(h).max(0.0);
-        let d = ggx_d(h.z, self.roughness);
-        let f = fresnel(v_h);
-        let g = g1(wo.z, self.roughness) * g1(wi.z, self.roughness);
-        self.specular_weight * d * f * g / (4.0 * wo.z * wi.z)
+        let c = Cosines { n_v: wo.z, n_l: wi.z, n_h: h.z, v_h };
+        // specular_weight is 1 here (0 returned above): the product is exact.
+        self.specular_weight * specular(c, self.roughness)
     }
 
     /// `f(wo, wi)` (without the cosine).
@@ -177,7 +304,7 @@ impl Karis {
     #[inline]
     pub fn at(&self, wo: Vec3) -> KarisWo {
         let a = self.roughness * self.roughness;
-        let k = (self.roughness + 1.0) * (self.roughness + 1.0) / 8.0;
+        let k = masking_k(self.roughness);
         KarisWo {
             wo,
             diffuse: self.albedo * (1.0 / PI),

@@ -51,6 +51,9 @@ impl Camera {
         if width == 0 || height == 0 {
             return err("zero image size");
         }
+        // Bytes a pixel of the smallest render needs (one light slot, the image, its encoding);
+        // renders, G-buffers and grids check their own, larger needs.
+        psc_base::limits::check_image(&format!("{context}: image"), width as u64, height as u64, 36)?;
         if !(spec.fov_y_deg > 0.0 && spec.fov_y_deg < 179.0) {
             return err(&format!("fov_y_deg must be in (0, 179), got {}", spec.fov_y_deg));
         }
@@ -117,8 +120,7 @@ struct CameraFileRepr {
 }
 
 pub fn load_camera_file(path: &Path) -> Result<CameraFile, RenderError> {
-    let text = std::fs::read_to_string(path).map_err(|e| RenderError::io(path, e))?;
-    let r: CameraFileRepr = serde_json::from_str(&text).map_err(|e| RenderError::json(path, &e))?;
+    let r: CameraFileRepr = crate::json::read(path, "camera file")?;
     let size = match (r.width, r.height) {
         (Some(w), Some(h)) => Some((w, h)),
         _ => None,

@@ -147,7 +147,7 @@ pub struct EnvMap {
 
 #[inline]
 fn luminance(c: Vec3) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+    psc_base::color::luminance(c.to_array())
 }
 
 impl EnvMap {

@@ -16,8 +16,24 @@ pub enum RenderError {
     Image { path: PathBuf, message: String },
     /// A camera that cannot form an image (position == look_at, fov out of range, ...).
     Camera { context: String, message: String },
+    /// An output could not be written whole (exists, wrong kind, I/O); see `psc_base::output`.
+    Output(psc_base::output::OutputError),
+    /// A request over a resource limit (`psc_base::limits`): says the limit and the memory.
+    Limit(psc_base::limits::LimitError),
     /// Any other inconsistency in a scene or in the options.
     Invalid(String),
+}
+
+impl From<psc_base::limits::LimitError> for RenderError {
+    fn from(e: psc_base::limits::LimitError) -> Self {
+        RenderError::Limit(e)
+    }
+}
+
+impl From<psc_base::output::OutputError> for RenderError {
+    fn from(e: psc_base::output::OutputError) -> Self {
+        RenderError::Output(e)
+    }
 }
 
 impl RenderError {
@@ -45,6 +61,8 @@ impl fmt::Display for RenderError {
             RenderError::Obj { path, message } => write!(f, "{}: {message}", path.display()),
             RenderError::Image { path, message } => write!(f, "{}: {message}", path.display()),
             RenderError::Camera { context, message } => write!(f, "{context}: degenerate camera: {message}"),
+            RenderError::Output(e) => write!(f, "{e}"),
+            RenderError::Limit(e) => write!(f, "{e}"),
             RenderError::Invalid(message) => write!(f, "{message}"),
         }
     }

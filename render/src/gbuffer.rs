@@ -9,6 +9,7 @@
 
 use std::path::Path;
 
+use psc_base::output::{Replace, StagedDir};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -46,6 +47,10 @@ struct Px {
     p: [f32; 3],
 }
 
+/// Memory a G-buffer needs per pixel: the traced pixel (88 bytes), the output arrays (80) and
+/// one EXR being encoded (~24).
+const BYTES_PER_PIXEL: u64 = 192;
+
 /// G-buffer of `camera` at its resolution. `materials` (one per part) adds normal maps to the
 /// shading normal; without them the shading normal is the interpolated mesh normal.
 pub fn render_gbuffer(
@@ -54,8 +59,9 @@ pub fn render_gbuffer(
     part_names: &[String],
     light_names: &[String],
     materials: Option<&[MaterialBinding]>,
-) -> GBuffer {
+) -> Result<GBuffer, RenderError> {
     let (w, h) = (camera.width, camera.height);
+    psc_base::limits::check_image("G-buffer", w as u64, h as u64, BYTES_PER_PIXEL)?;
     let n_parts = part_names.len() as u32;
     let px: Vec<Px> = (0..w * h)
         .into_par_iter()
@@ -95,7 +101,7 @@ pub fn render_gbuffer(
         .collect();
     let mut id_names: Vec<String> = part_names.to_vec();
     id_names.extend(light_names.iter().map(|n| format!("light:{n}")));
-    GBuffer {
+    Ok(GBuffer {
         width: w,
         height: h,
         part_id: px.iter().map(|p| p.id).collect(),
@@ -107,7 +113,7 @@ pub fn render_gbuffer(
         depth: px.iter().map(|p| p.depth).collect(),
         position: px.iter().map(|p| p.p).collect(),
         id_names,
-    }
+    })
 }
 
 #[derive(Serialize)]
@@ -123,8 +129,8 @@ impl GBuffer {
     /// Write `dir/part_id.png` (16-bit), `uv.exr` (u, v, 0), `normal_geometric.exr`,
     /// `normal_shading.exr`, `tangent.exr`, `bitangent.exr`, `position.exr`, `depth.exr`
     /// (depth in all three channels) and `gbuffer.json` (id → name, file list).
+    /// The folder must exist; [`GBuffer::write_folder`] makes a new folder whole.
     pub fn save(&self, dir: &Path) -> Result<(), RenderError> {
-        std::fs::create_dir_all(dir).map_err(|e| RenderError::io(dir, e))?;
         let (w, h) = (self.width, self.height);
         image_io::write_gray16(&dir.join("part_id.png"), w, h, &self.part_id)?;
         let uv: Vec<[f32; 3]> = self.uv.iter().map(|u| [u[0], u[1], 0.0]).collect();
@@ -156,6 +162,17 @@ impl GBuffer {
         };
         let json = serde_json::to_vec_pretty(&index).map_err(|e| RenderError::Invalid(e.to_string()))?;
         image_io::atomic_write(&dir.join("gbuffer.json"), &json)
+    }
+}
+
+impl GBuffer {
+    /// Write the G-buffer files (see [`GBuffer::save`]) as the new folder `dest`, which appears
+    /// whole or not at all; an existing `dest` is refused unless `replace` is `Replace::Yes`.
+    pub fn write_folder(&self, dest: &Path, replace: Replace) -> Result<(), RenderError> {
+        let staged = StagedDir::new(dest, replace)?;
+        self.save(staged.path())?;
+        staged.commit()?;
+        Ok(())
     }
 }
 

@@ -1,8 +1,8 @@
-//! Image input and output: sRGB PNG/JPEG (8/16 bit), linear EXR, label images, and atomic
-//! writes (every output goes to a temporary file in the destination folder, then is renamed).
+//! Image input and output: sRGB PNG/JPEG (8/16 bit), linear EXR, label images. Every file is
+//! written atomically (`psc_base::output`), so a reader never sees half of one.
 
-use std::io::{Cursor, Write};
-use std::path::{Path, PathBuf};
+use std::io::Cursor;
+use std::path::Path;
 
 use crate::RenderError;
 
@@ -14,34 +14,34 @@ pub struct RgbImage {
     pub data: Vec<[f32; 3]>,
 }
 
-#[inline]
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-#[inline]
-pub fn linear_to_srgb(c: f32) -> f32 {
-    let c = if c.is_finite() { c.clamp(0.0, 1.0) } else { 0.0 };
-    if c <= 0.003_130_8 {
-        c * 12.92
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
+pub use psc_base::color::{linear_to_srgb, srgb_to_linear};
 
 fn is_exr(path: &Path) -> bool {
     path.extension().and_then(|e| e.to_str()).is_some_and(|e| e.eq_ignore_ascii_case("exr"))
 }
 
-/// Width and height of a PNG/JPEG/EXR without decoding its pixels.
+/// Memory a full decode needs per pixel: the decoder's buffer (up to 16-bit RGBA, 8 bytes), the
+/// float conversion (12) and the result (12).
+const DECODE_BYTES_PER_PIXEL: u64 = 32;
+
+/// Width and height of a PNG/JPEG/EXR without decoding its pixels; refused (naming the file)
+/// when over the pixel limit (`psc_base::limits::MAX_PIXELS`), whatever the file's size.
 pub fn dimensions(path: &Path) -> Result<(usize, usize), RenderError> {
-    if !path.is_file() {
-        return Err(RenderError::io(path, "file not found"));
-    }
+    let (w, h) = header_dimensions(path)?;
+    psc_base::limits::check_image(&format!("{}: image", path.display()), w as u64, h as u64, 0)?;
+    Ok((w, h))
+}
+
+/// Check the header of an image about to be decoded against the pixel limit and its decoded
+/// size against the memory budget.
+fn check_decodable(path: &Path, bytes_per_pixel: u64) -> Result<(), RenderError> {
+    let (w, h) = header_dimensions(path)?;
+    psc_base::limits::check_image(&format!("{}: image", path.display()), w as u64, h as u64, bytes_per_pixel)?;
+    Ok(())
+}
+
+fn header_dimensions(path: &Path) -> Result<(usize, usize), RenderError> {
+    crate::json::check_file(path, "an image")?;
     if is_exr(path) {
         let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| RenderError::image(path, e))?;
         let header = meta.headers.first().ok_or_else(|| RenderError::image(path, "EXR without layers"))?;
@@ -55,9 +55,7 @@ pub fn dimensions(path: &Path) -> Result<(usize, usize), RenderError> {
 /// Read an RGB image as linear floats. PNG/JPEG values are decoded from sRGB when `srgb`
 /// (else divided by the format's maximum); EXR is taken as linear.
 pub fn read_rgb(path: &Path, srgb: bool) -> Result<RgbImage, RenderError> {
-    if !path.is_file() {
-        return Err(RenderError::io(path, "file not found"));
-    }
+    check_decodable(path, DECODE_BYTES_PER_PIXEL)?;
     if is_exr(path) {
         let img = exr::prelude::read_first_rgba_layer_from_file(
             path,
@@ -84,9 +82,7 @@ pub fn read_rgb(path: &Path, srgb: bool) -> Result<RgbImage, RenderError> {
 
 /// Read a part-label image: 8- or 16-bit grayscale PNG, values returned as stored.
 pub fn read_labels(path: &Path) -> Result<(usize, usize, Vec<u16>), RenderError> {
-    if !path.is_file() {
-        return Err(RenderError::io(path, "file not found"));
-    }
+    check_decodable(path, 4)?;
     let dynimg = image::open(path).map_err(|e| RenderError::image(path, e))?;
     let (w, h) = (dynimg.width() as usize, dynimg.height() as usize);
     let data = match dynimg {
@@ -102,26 +98,10 @@ pub fn read_labels(path: &Path) -> Result<(usize, usize, Vec<u16>), RenderError>
     Ok((w, h, data))
 }
 
-/// Write `bytes` to `path` through a temporary file in the same folder and a rename, so that a
-/// reader never sees a half-written file.
+/// Write `bytes` to `path` atomically (`psc_base::output::write_atomic`: a temporary in the same
+/// folder, synced, renamed into place; removed on error and on SIGINT/SIGTERM).
 pub fn atomic_write(path: &Path, bytes: &[u8]) -> Result<(), RenderError> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path.file_name().ok_or_else(|| RenderError::io(path, "not a file path"))?;
-    let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(RenderError::io(path, e));
-    }
-    Ok(())
+    Ok(psc_base::output::write_atomic(path, bytes)?)
 }
 
 /// Encode an RGB float image as an uncompressed-float EXR in memory.
@@ -147,14 +127,15 @@ fn encode_png(img: image::DynamicImage) -> Result<Vec<u8>, RenderError> {
     Ok(buf.into_inner())
 }
 
-/// Write a linear image: `.exr` as linear float, `.png` as 8-bit sRGB (clipped to [0, 1]).
+/// Write a linear image: `.exr` as linear float, `.png` as 8-bit sRGB (clipped to [0, 1]; NaN
+/// black, +∞ white: `psc_base::color`).
 pub fn write_rgb(path: &Path, width: usize, height: usize, data: &[[f32; 3]]) -> Result<(), RenderError> {
     assert_eq!(data.len(), width * height);
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     let bytes = match ext.as_deref() {
         Some("exr") => encode_exr(width, height, data)?,
         Some("png") => {
-            let raw: Vec<u8> = data.iter().flat_map(|p| p.map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8)).collect();
+            let raw: Vec<u8> = data.iter().flat_map(|p| p.map(psc_base::color::linear_to_srgb8)).collect();
             let buf = image::RgbImage::from_raw(width as u32, height as u32, raw).expect("sized buffer");
             encode_png(image::DynamicImage::ImageRgb8(buf))?
         }

@@ -9,11 +9,13 @@
 //! Determinism: sample s of pixel i draws from `Rng::new(seed, i, s)` and pixels are reduced in a
 //! fixed order, so the result does not depend on the thread count or scheduling.
 
+use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use glam::Vec3;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use psc_base::output::{Replace, StagedDir};
+use psc_base::progress::{self, NoProgress, Progress};
 use rayon::prelude::*;
 
 use crate::brdf::Karis;
@@ -38,8 +40,6 @@ pub struct RenderOptions {
     pub rr_depth: u32,
     /// Worker threads (None = rayon's global pool).
     pub threads: Option<usize>,
-    /// Draw a progress bar on stderr (only when it is a terminal).
-    pub progress: bool,
     /// Also return one image per light slot at unit radiance.
     pub per_light: bool,
     /// Validation only: switch the specular lobe off (pure Lambertian).
@@ -60,6 +60,33 @@ pub struct PathConfig {
 }
 
 impl RenderOptions {
+    /// Refuse options that cannot give a meaningful image or that exceed the resource limits
+    /// (`psc_base::limits`), before anything is allocated; `slots` = light slots of the scene.
+    pub fn check(&self, slots: usize) -> Result<(), RenderError> {
+        use psc_base::limits;
+        if self.width == 0 || self.height == 0 {
+            return Err(RenderError::Invalid(format!("image size {}x{} must be positive", self.width, self.height)));
+        }
+        if self.spp == 0 {
+            return Err(RenderError::Invalid("samples per pixel must be at least 1".into()));
+        }
+        if self.max_depth == 0 {
+            return Err(RenderError::Invalid(
+                "max_depth 0 renders nothing (Mitsuba convention: 1 = directly visible emitters, 2 = direct light, \
+                 6 = the default)"
+                    .into(),
+            ));
+        }
+        limits::check_count("samples per pixel", self.spp as u64, limits::MAX_SPP, "samples")?;
+        if let Some(t) = self.threads {
+            limits::check_threads(t as u64)?;
+        }
+        // Per pixel: the slot accumulators, the combined image, and the per-light copies.
+        let per_pixel = 12 * (slots as u64 + 1 + if self.per_light { slots as u64 } else { 0 });
+        limits::check_image("render", self.width as u64, self.height as u64, per_pixel)?;
+        Ok(())
+    }
+
     pub fn path_config(&self) -> PathConfig {
         PathConfig {
             max_depth: self.max_depth,
@@ -81,7 +108,6 @@ impl Default for RenderOptions {
             max_depth: 6,
             rr_depth: 5,
             threads: None,
-            progress: false,
             per_light: false,
             diffuse_only: false,
         }
@@ -102,16 +128,62 @@ pub struct RenderOutput {
     pub seconds: f64,
 }
 
+impl RenderOutput {
+    /// Write the per-light images (`<slot>.exr`, linear, unit radiance) and `combined.exr` (the
+    /// render) as the new folder `dest`, which appears whole or not at all; an existing `dest`
+    /// is refused unless `replace` is `Replace::Yes`.
+    pub fn write_per_light_folder(&self, dest: &std::path::Path, replace: Replace) -> Result<(), RenderError> {
+        let staged = StagedDir::new(dest, replace)?;
+        let names: Vec<&str> = self.per_light.iter().map(|(n, _)| n.as_str()).collect();
+        for ((_, img), file) in self.per_light.iter().zip(slot_file_names(&names)) {
+            crate::image_io::write_rgb(&staged.path().join(file), self.width, self.height, img)?;
+        }
+        crate::image_io::write_rgb(&staged.path().join("combined.exr"), self.width, self.height, &self.image)?;
+        staged.commit()?;
+        Ok(())
+    }
+}
+
+/// File names (`<name>.exr`) for light slots: characters other than ASCII letters, digits, `_`,
+/// `-` and `.` become `_` (a light named `../x` cannot write outside the folder), a leading `.`
+/// too, and names that collide (with each other or with `combined`) get a `_<k>` suffix.
+pub fn slot_file_names(names: &[&str]) -> Vec<String> {
+    let mut used: Vec<String> = vec!["combined".into()];
+    names
+        .iter()
+        .map(|n| {
+            let mut base: String =
+                n.chars().map(|c| if c.is_ascii_alphanumeric() || "_-.".contains(c) { c } else { '_' }).collect();
+            if base.is_empty() || base.starts_with('.') {
+                base.insert(0, '_');
+            }
+            let mut name = base.clone();
+            let mut k = 1;
+            while used.contains(&name) {
+                name = format!("{base}_{k}");
+                k += 1;
+            }
+            used.push(name.clone());
+            format!("{name}.exr")
+        })
+        .collect()
+}
+
 /// Everything needed to trace a scene with given materials and light radiances.
+///
+/// The light radiances decide how next-event estimation picks lights, so they change only
+/// through [`Renderer::set_radiances`], which rebuilds that selection: a light solve that
+/// re-renders with new radiances never samples with stale distributions.
 pub struct Renderer {
-    pub geometry: SceneGeometry,
-    pub lights: AreaLights,
-    pub env: Option<EnvMap>,
-    pub materials: Vec<MaterialBinding>,
-    pub part_names: Vec<String>,
+    geometry: SceneGeometry,
+    lights: AreaLights,
+    env: Option<EnvMap>,
+    materials: Vec<MaterialBinding>,
+    part_names: Vec<String>,
+    radiances: LightRadiances,
     /// Radiance per slot (lights, then environment scale).
-    pub slot_radiance: Vec<Vec3>,
-    pub slot_names: Vec<String>,
+    slot_radiance: Vec<Vec3>,
+    slot_names: Vec<String>,
     /// Light selection for NEE weighted by power (area × luminance of radiance).
     select_power: Distribution1D,
     /// Light selection weighted by area only (per-light renders: every light gets samples).
@@ -120,7 +192,7 @@ pub struct Renderer {
 
 #[inline]
 fn luminance(c: Vec3) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+    psc_base::color::luminance(c.to_array())
 }
 
 #[inline]
@@ -147,6 +219,17 @@ impl Renderer {
         materials: Vec<MaterialBinding>,
         radiances: &LightRadiances,
     ) -> Result<Self, RenderError> {
+        Self::new_with_progress(scene, materials, radiances, &NoProgress)
+    }
+
+    /// [`Renderer::new`], reporting the BVH build (the long part for large meshes; its length is
+    /// not known in advance) to `progress`.
+    pub fn new_with_progress(
+        scene: &Scene,
+        materials: Vec<MaterialBinding>,
+        radiances: &LightRadiances,
+        progress: &dyn Progress,
+    ) -> Result<Self, RenderError> {
         if materials.len() != scene.mesh.part_names.len() {
             return Err(RenderError::Invalid(format!(
                 "{} material bindings for {} parts",
@@ -154,26 +237,48 @@ impl Renderer {
                 scene.mesh.part_names.len()
             )));
         }
-        if radiances.lights.len() != scene.lights.len() {
-            return Err(RenderError::Invalid(format!(
-                "{} light radiances for {} lights",
-                radiances.lights.len(),
-                scene.lights.len()
-            )));
-        }
         let lights = AreaLights::new(&scene.lights);
-        let geometry = SceneGeometry::new(scene, &lights);
-        let mut slot_radiance: Vec<Vec3> = radiances.lights.iter().map(|&r| Vec3::from(r)).collect();
+        let n_tris = scene.mesh.triangles.len() as u64;
+        let geometry = progress::stage(progress, "building BVH", None, &format!("({n_tris} triangles)"), || {
+            SceneGeometry::new(scene, &lights)
+        });
         let mut slot_names = lights.names.clone();
         if scene.environment.is_some() {
-            slot_radiance.push(Vec3::from(radiances.environment));
             slot_names.push("environment".into());
         }
+        let mut renderer = Renderer {
+            geometry,
+            lights,
+            env: scene.environment.clone(),
+            materials,
+            part_names: scene.mesh.part_names.clone(),
+            radiances: LightRadiances::unit(scene),
+            slot_radiance: Vec::new(),
+            slot_names,
+            select_power: Distribution1D::new(&[]),
+            select_unit: Distribution1D::new(&[]),
+        };
+        renderer.set_radiances(radiances)?;
+        Ok(renderer)
+    }
+
+    /// Re-target the renderer to other light radiances (one per light, same order as the
+    /// scene's, and the environment scale), rebuilding the light selection that depends on
+    /// them. Refused (and nothing changes) when the count differs or a value is negative or
+    /// not finite.
+    pub fn set_radiances(&mut self, radiances: &LightRadiances) -> Result<(), RenderError> {
+        radiances.validate(&self.lights.names)?;
+        let mut slot_radiance: Vec<Vec3> = radiances.lights.iter().map(|&r| Vec3::from(r)).collect();
+        if self.env.is_some() {
+            slot_radiance.push(Vec3::from(radiances.environment));
+        }
+        let has_env = self.env.is_some();
+        let lights = &self.lights;
         let mk = |unit: bool| {
             let mut w: Vec<f32> = (0..lights.len())
                 .map(|k| lights.areas[k] * if unit { 1.0 } else { luminance(slot_radiance[k]).max(0.0) })
                 .collect();
-            if scene.environment.is_some() {
+            if has_env {
                 let s: f32 = w.iter().sum();
                 let env_on = unit || luminance(slot_radiance[lights.len()]) > 0.0;
                 w.push(if !env_on {
@@ -187,21 +292,78 @@ impl Renderer {
             Distribution1D::new(&w)
         };
         let (select_power, select_unit) = (mk(false), mk(true));
-        Ok(Renderer {
-            geometry,
-            lights,
-            env: scene.environment.clone(),
-            materials,
-            part_names: scene.mesh.part_names.clone(),
-            slot_radiance,
-            slot_names,
-            select_power,
-            select_unit,
-        })
+        self.select_power = select_power;
+        self.select_unit = select_unit;
+        self.slot_radiance = slot_radiance;
+        self.radiances = radiances.clone();
+        Ok(())
+    }
+
+    /// The radiances the renderer renders with.
+    pub fn radiances(&self) -> &LightRadiances {
+        &self.radiances
+    }
+
+    /// Radiance per light slot: the lights, then the environment scale if the scene has one.
+    pub fn slot_radiance(&self) -> &[Vec3] {
+        &self.slot_radiance
+    }
+
+    /// Names of the light slots: the lights, then "environment" if the scene has one.
+    pub fn slot_names(&self) -> &[String] {
+        &self.slot_names
     }
 
     pub fn n_slots(&self) -> usize {
         self.slot_radiance.len()
+    }
+
+    /// The traced geometry (model and emitters in one BVH).
+    pub fn geometry(&self) -> &SceneGeometry {
+        &self.geometry
+    }
+
+    /// The area lights (names, triangles, areas).
+    pub fn lights(&self) -> &AreaLights {
+        &self.lights
+    }
+
+    /// The environment map, if the scene has one.
+    pub fn environment(&self) -> Option<&EnvMap> {
+        self.env.as_ref()
+    }
+
+    /// One binding per model part, in the order of [`Renderer::part_names`].
+    pub fn materials(&self) -> &[MaterialBinding] {
+        &self.materials
+    }
+
+    /// Replace the material bindings (one per part, as in [`Renderer::new`]).
+    pub fn set_materials(&mut self, materials: Vec<MaterialBinding>) -> Result<(), RenderError> {
+        if materials.len() != self.part_names.len() {
+            return Err(RenderError::Invalid(format!(
+                "{} material bindings for {} parts",
+                materials.len(),
+                self.part_names.len()
+            )));
+        }
+        self.materials = materials;
+        Ok(())
+    }
+
+    pub fn part_names(&self) -> &[String] {
+        &self.part_names
+    }
+
+    /// The G-buffer of `camera` at its resolution, with the materials' normal maps.
+    pub fn gbuffer(&self, camera: &Camera) -> Result<crate::GBuffer, RenderError> {
+        crate::gbuffer::render_gbuffer(
+            &self.geometry,
+            camera,
+            &self.part_names,
+            &self.lights.names,
+            Some(&self.materials),
+        )
     }
 
     fn selection(&self, per_light: bool) -> &Distribution1D {
@@ -347,27 +509,48 @@ impl Renderer {
 
     /// Path-trace an image from `camera` (its resolution is overridden by the options' size).
     pub fn render(&self, camera: &Camera, opts: &RenderOptions) -> Result<RenderOutput, RenderError> {
-        if opts.width == 0 || opts.height == 0 || opts.spp == 0 {
-            return Err(RenderError::Invalid("size and spp must be positive".into()));
-        }
+        self.render_with_progress(camera, opts, &NoProgress)
+    }
+
+    /// [`Renderer::render`], reporting the stage "render" in samples to `progress`: per row and
+    /// sample pass, with enough passes (at least 256 updates, at most one pass a sample) that a
+    /// small image with many samples still moves. Passes add each pixel's samples in the same
+    /// order as one pass would, so the image does not depend on them.
+    pub fn render_with_progress(
+        &self,
+        camera: &Camera,
+        opts: &RenderOptions,
+        progress: &dyn Progress,
+    ) -> Result<RenderOutput, RenderError> {
+        let (w, h, ns) = (opts.width, opts.height, self.n_slots());
+        opts.check(ns)?;
         let mut cam = camera.clone();
         if (cam.width, cam.height) != (opts.width, opts.height) {
-            cam = rescale(camera, opts.width, opts.height);
+            cam = rescale(camera, opts.width, opts.height)?;
         }
-        let (w, h, ns) = (opts.width, opts.height, self.n_slots());
         let start = Instant::now();
         let rays = AtomicU64::new(0);
-        let bar = progress_bar(opts.progress, h as u64, "render");
         let mut slots = vec![Vec3::ZERO; w * h * ns];
         let cfg = opts.path_config();
+        let spp = opts.spp as usize;
+        let passes = 256usize.div_ceil(h).clamp(1, spp);
         let body = |slots: &mut Vec<Vec3>| {
-            slots.par_chunks_mut(w * ns).enumerate().for_each(|(y, row)| {
-                rays.fetch_add(self.render_row(&cam, opts, &cfg, y, row), Ordering::Relaxed);
-                bar.inc(1);
-            });
+            if ns == 0 {
+                return; // no lights and no environment: a black image
+            }
+            for p in 0..passes {
+                let samples = (spp * p / passes) as u32..(spp * (p + 1) / passes) as u32;
+                let last = p + 1 == passes;
+                slots.par_chunks_mut(w * ns).enumerate().for_each(|(y, row)| {
+                    let r = self.render_row(&cam, opts, &cfg, y, row, samples.clone(), last);
+                    rays.fetch_add(r, Ordering::Relaxed);
+                    progress.advance((w * samples.len()) as u64);
+                });
+            }
         };
-        run_in_pool(opts.threads, || body(&mut slots))?;
-        bar.finish_and_clear();
+        progress::stage(progress, "render", Some((w * h * spp) as u64), "samples", || {
+            run_in_pool(opts.threads, || body(&mut slots))
+        })?;
         let image: Vec<[f32; 3]> = slots
             .chunks_exact(ns.max(1))
             .map(|px| px.iter().zip(&self.slot_radiance).fold(Vec3::ZERO, |a, (v, r)| a + *v * *r).to_array())
@@ -390,42 +573,73 @@ impl Renderer {
         })
     }
 
-    /// Row `y` of the slot images (`row`: width × slots); returns the rays cast. Dispatches to a
-    /// copy compiled for AVX2 where the CPU has it (VEX encoding, SSE4.1 rounding and blends;
-    /// no FMA contraction, so the results are bit-identical to the baseline copy).
-    fn render_row(&self, cam: &Camera, opts: &RenderOptions, cfg: &PathConfig, y: usize, row: &mut [Vec3]) -> u64 {
+    /// Adds samples `samples` of every pixel of row `y` to `row` (width × slots, zero before
+    /// the first pass) and, on the `last` pass, divides by the sample count; returns the rays
+    /// cast. Dispatches to a copy compiled for AVX2 where the CPU has it (VEX encoding, SSE4.1
+    /// rounding and blends; no FMA contraction, so the results are bit-identical to the baseline
+    /// copy).
+    #[allow(clippy::too_many_arguments)]
+    fn render_row(
+        &self,
+        cam: &Camera,
+        opts: &RenderOptions,
+        cfg: &PathConfig,
+        y: usize,
+        row: &mut [Vec3],
+        samples: Range<u32>,
+        last: bool,
+    ) -> u64 {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports the features the function is compiled for.
-            return unsafe { self.render_row_avx2(cam, opts, cfg, y, row) };
+            return unsafe { self.render_row_avx2(cam, opts, cfg, y, row, samples, last) };
         }
-        self.render_row_impl(cam, opts, cfg, y, row)
+        self.render_row_impl(cam, opts, cfg, y, row, samples, last)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn render_row_avx2(&self, cam: &Camera, opts: &RenderOptions, cfg: &PathConfig, y: usize, row: &mut [Vec3]) -> u64 {
-        self.render_row_impl(cam, opts, cfg, y, row)
+    #[allow(clippy::too_many_arguments)]
+    fn render_row_avx2(
+        &self,
+        cam: &Camera,
+        opts: &RenderOptions,
+        cfg: &PathConfig,
+        y: usize,
+        row: &mut [Vec3],
+        samples: Range<u32>,
+        last: bool,
+    ) -> u64 {
+        self.render_row_impl(cam, opts, cfg, y, row, samples, last)
     }
 
     #[inline(always)]
-    fn render_row_impl(&self, cam: &Camera, opts: &RenderOptions, cfg: &PathConfig, y: usize, row: &mut [Vec3]) -> u64 {
+    #[allow(clippy::too_many_arguments)]
+    fn render_row_impl(
+        &self,
+        cam: &Camera,
+        opts: &RenderOptions,
+        cfg: &PathConfig,
+        y: usize,
+        row: &mut [Vec3],
+        samples: Range<u32>,
+        last: bool,
+    ) -> u64 {
         let (w, ns) = (opts.width, self.n_slots());
-        let mut acc = vec![Vec3::ZERO; ns];
         let mut row_rays = 0u64;
         for x in 0..w {
             let pixel = (y * w + x) as u64;
-            acc.iter_mut().for_each(|a| *a = Vec3::ZERO);
-            for s in 0..opts.spp {
-                let mut st = PathState { rng: Rng::new(opts.seed, pixel, s as u64), rays: 0, out: &mut acc };
+            let acc = &mut row[x * ns..(x + 1) * ns];
+            for s in samples.clone() {
+                let mut st = PathState { rng: Rng::new(opts.seed, pixel, s as u64), rays: 0, out: acc };
                 let j = st.rng.next_2d();
                 let d = cam.direction(x as f32 + j[0], y as f32 + j[1]);
                 self.li_inline(cam.position, d, cfg, &mut st);
                 row_rays += st.rays;
             }
-            let inv = 1.0 / opts.spp as f32;
-            for k in 0..ns {
-                row[x * ns + k] = acc[k] * inv;
+            if last {
+                let inv = 1.0 / opts.spp as f32;
+                acc.iter_mut().for_each(|a| *a *= inv);
             }
         }
         row_rays
@@ -464,8 +678,9 @@ impl Renderer {
     }
 }
 
-/// The same camera at another resolution (same vertical field of view).
-pub fn rescale(camera: &Camera, width: usize, height: usize) -> Camera {
+/// The same camera at another resolution (same vertical field of view); fails only for a size
+/// that is zero or over the pixel limit.
+pub fn rescale(camera: &Camera, width: usize, height: usize) -> Result<Camera, RenderError> {
     let fov = 2.0 * camera_tan_half_y(camera).atan().to_degrees();
     let spec = crate::camera::CameraSpec {
         position: camera.position.to_array(),
@@ -473,7 +688,7 @@ pub fn rescale(camera: &Camera, width: usize, height: usize) -> Camera {
         up: camera.up.to_array(),
         fov_y_deg: fov,
     };
-    Camera::new(&spec, width, height, "camera").expect("a valid camera stays valid at another size")
+    Camera::new(&spec, width, height, "camera")
 }
 
 fn camera_tan_half_y(c: &Camera) -> f32 {
@@ -486,6 +701,7 @@ pub(crate) fn run_in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T
     match threads {
         None => Ok(f()),
         Some(n) => {
+            psc_base::limits::check_threads(n as u64)?;
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(n.max(1))
                 .build()
@@ -493,16 +709,4 @@ pub(crate) fn run_in_pool<T: Send>(threads: Option<usize>, f: impl FnOnce() -> T
             Ok(pool.install(f))
         }
     }
-}
-
-pub(crate) fn progress_bar(show: bool, len: u64, what: &str) -> ProgressBar {
-    if !show {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
-    if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} rows, {elapsed} (eta {eta})") {
-        bar.set_style(style.progress_chars("=> "));
-    }
-    bar.set_message(what.to_string());
-    bar
 }

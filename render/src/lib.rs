@@ -6,11 +6,13 @@
 //! cameras, the BVH ([`bvh`]: 4-wide, collapsed from an obvhs binary BVH), the shading layer
 //! ([`brdf`], the exact formulas the fit uses), the material interface ([`SurfaceMaterial`],
 //! [`MaterialBinding`]), the path tracer with next-event estimation and MIS, G-buffers, light
-//! grids, per-light renders and image I/O.
+//! grids, per-light renders, image I/O, the lights file ([`lights`]: a public type that reads
+//! and writes, with validation) and JSON reading with errors that name the field ([`json`]).
 //!
 //! Must never: depend on the grammar/compiler/JIT/runtime crates (render is a leaf; the runtime
 //! implements [`SurfaceMaterial`] for compiled graphs), read `truth/` on behalf of the fit (only
-//! [`truth`] does, and only for validation and `psc render` conveniences), panic on bad input
+//! [`truth`] does, and only when asked for by name: `--materials truth`, `--geometry truth`,
+//! `--lights truth`), panic on bad input
 //! (every problem with a scene is a [`RenderError`] or a warning), or leave half-written files.
 
 pub mod brdf;
@@ -22,7 +24,9 @@ pub mod gbuffer;
 pub mod geometry;
 pub mod image_io;
 pub mod integrator;
+pub mod json;
 pub mod lightgrid;
+pub mod lights;
 pub mod material;
 pub mod mesh;
 pub mod rng;
@@ -33,6 +37,9 @@ pub use camera::{Camera, CameraSpec};
 pub use error::RenderError;
 pub use gbuffer::{render_gbuffer, GBuffer};
 pub use integrator::{RenderOptions, RenderOutput, Renderer};
-pub use lightgrid::{compute_light_grid, LightGrid, LightGridOptions, GRID_PHI_BINS, GRID_THETA_BINS};
+pub use lightgrid::{
+    compute_light_grid, compute_light_grid_with_progress, LightGrid, LightGridOptions, GRID_PHI_BINS, GRID_THETA_BINS,
+};
+pub use lights::{LightRadiances, LightsFile, LightsSource};
 pub use material::{ConstantMaterial, ImageMaterial, MaterialBinding, SurfaceMaterial, SurfaceSample, Texture};
-pub use scene::{LightRadiances, Scene, View};
+pub use scene::{Scene, View};

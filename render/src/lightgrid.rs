@@ -24,13 +24,15 @@ use std::f32::consts::PI;
 use std::path::Path;
 
 use glam::Vec3;
+use psc_base::output::{Replace, StagedDir};
+use psc_base::progress::{self, NoProgress, Progress};
 use rayon::prelude::*;
 use serde_json::json;
 
 use crate::camera::Camera;
 use crate::geometry::Traced;
 use crate::image_io;
-use crate::integrator::{progress_bar, run_in_pool, PathConfig, PathState, Renderer};
+use crate::integrator::{run_in_pool, PathConfig, PathState, Renderer};
 use crate::rng::Rng;
 use crate::RenderError;
 
@@ -49,7 +51,6 @@ pub struct LightGridOptions {
     pub max_depth: u32,
     pub rr_depth: u32,
     pub threads: Option<usize>,
-    pub progress: bool,
     /// Keep one grid per light slot.
     pub per_light: bool,
     /// Validation only: Lambertian bounces (the specular lobe off) along the grid's paths.
@@ -66,7 +67,6 @@ impl Default for LightGridOptions {
             max_depth: 6,
             rr_depth: 5,
             threads: None,
-            progress: false,
             per_light: false,
             diffuse_only: false,
         }
@@ -120,14 +120,42 @@ struct Cell {
 
 /// Estimate the grid for `camera` (at its resolution).
 pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions) -> Result<LightGrid, RenderError> {
+    compute_light_grid_with_progress(r, camera, opts, &NoProgress)
+}
+
+/// [`compute_light_grid`], reporting the stage "light grid" in cells to `progress`.
+pub fn compute_light_grid_with_progress(
+    r: &Renderer,
+    camera: &Camera,
+    opts: &LightGridOptions,
+    progress: &dyn Progress,
+) -> Result<LightGrid, RenderError> {
+    use psc_base::limits;
     if opts.stride == 0 || opts.samples_per_bin == 0 {
         return Err(RenderError::Invalid("light grid stride and samples per bin must be positive".into()));
     }
+    if opts.max_depth < 2 {
+        return Err(RenderError::Invalid(format!(
+            "a light grid needs max_depth of at least 2 (incoming light at a surface is one bounce from the \
+             camera), got {}",
+            opts.max_depth
+        )));
+    }
+    limits::check_count("light-grid paths per bin", opts.samples_per_bin as u64, limits::MAX_GRID_SAMPLES, "paths")?;
     let (w, h) = (camera.width, camera.height);
     let (gw, gh) = (w.div_ceil(opts.stride), h.div_ceil(opts.stride));
     let ns = r.n_slots();
-    let n_parts = r.part_names.len() as u32;
-    let bar = progress_bar(opts.progress, (gw * gh) as u64, "light grid");
+    // Per cell: the slot values of every bin, the combined grid and the per-light copies, plus
+    // the cell's geometry.
+    let per_cell = (BINS * 12) as u64 * (ns as u64 + 1 + if opts.per_light { ns as u64 } else { 0 }) + 64;
+    limits::check_elements(
+        format!("light grid of {gw}x{gh} cells (stride {})", opts.stride),
+        &[gw as u64, gh as u64],
+        limits::MAX_PIXELS,
+        "cells",
+        per_cell,
+    )?;
+    let n_parts = r.part_names().len() as u32;
     let cfg = PathConfig {
         max_depth: opts.max_depth.saturating_sub(1),
         rr_depth: opts.rr_depth,
@@ -135,7 +163,7 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
         diffuse_only: opts.diffuse_only,
         skip_direct_emitters: true,
     };
-    let cells: Vec<Cell> = run_in_pool(opts.threads, || {
+    let work = || {
         (0..gw * gh)
             .into_par_iter()
             .map(|c| {
@@ -150,22 +178,22 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
                     t: [0.0; 3],
                     slots: vec![Vec3::ZERO; ns * BINS],
                 };
-                let hit = match r.geometry.trace(camera.position, d, f32::INFINITY) {
+                let hit = match r.geometry().trace(camera.position, d, f32::INFINITY) {
                     Traced::Surface(hit) => hit,
                     Traced::Emitter { light, .. } => {
                         cell.part = (n_parts + 1 + light) as u16;
-                        bar.inc(1);
+                        progress.advance(1);
                         return cell;
                     }
                     Traced::Miss => {
-                        bar.inc(1);
+                        progress.advance(1);
                         return cell;
                     }
                 };
-                let tn = r.materials[hit.part as usize].eval(hit.uv).normal;
-                let sf = r.geometry.shading_frame(&hit, -d, tn);
+                let tn = r.materials()[hit.part as usize].eval(hit.uv).normal;
+                let sf = r.geometry().shading_frame(&hit, -d, tn);
                 let frame = crate::brdf::Frame::new(sf.frame.n, sf.tangent);
-                let origin = r.geometry.offset(hit.p, sf.ng);
+                let origin = r.geometry().offset(hit.p, sf.ng);
                 let mut acc = vec![Vec3::ZERO; ns];
                 let inv = 1.0 / opts.samples_per_bin as f32;
                 for i in 0..GRID_THETA_BINS {
@@ -195,15 +223,16 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
                 cell.p = hit.p.to_array();
                 cell.n = frame.n.to_array();
                 cell.t = frame.t.to_array();
-                bar.inc(1);
+                progress.advance(1);
                 cell
             })
             .collect()
-    })?;
-    bar.finish_and_clear();
+    };
+    let cells: Vec<Cell> =
+        progress::stage(progress, "light grid", Some((gw * gh) as u64), "cells", || run_in_pool(opts.threads, work))?;
     let mut radiance = vec![0.0f32; gw * gh * BINS * 3];
     let mut per_slot: Vec<(String, Vec<f32>)> = if opts.per_light {
-        r.slot_names.iter().map(|n| (n.clone(), vec![0.0f32; gw * gh * BINS * 3])).collect()
+        r.slot_names().iter().map(|n| (n.clone(), vec![0.0f32; gw * gh * BINS * 3])).collect()
     } else {
         Vec::new()
     };
@@ -212,7 +241,7 @@ pub fn compute_light_grid(r: &Renderer, camera: &Camera, opts: &LightGridOptions
             let mut sum = Vec3::ZERO;
             for k in 0..ns {
                 let v = cell.slots[k * BINS + b];
-                sum += v * r.slot_radiance[k];
+                sum += v * r.slot_radiance()[k];
                 if opts.per_light {
                     per_slot[k].1[(c * BINS + b) * 3..(c * BINS + b) * 3 + 3].copy_from_slice(&v.to_array());
                 }
@@ -262,12 +291,12 @@ fn add_direct_light(
     if n == 0 {
         return;
     }
-    for k in 0..r.lights.len() {
+    for k in 0..r.lights().len() {
         let mut rng = Rng::new(opts.seed ^ 0xd1_5ec7, cell, k as u64);
         for _ in 0..n {
             let u_tri = rng.next_f32();
             let u = rng.next_2d();
-            let Some(lp) = r.lights.sample(k, u_tri, u) else { continue };
+            let Some(lp) = r.lights().sample(k, u_tri, u) else { continue };
             let to = lp.p - origin;
             let dist2 = to.length_squared();
             let dist = dist2.sqrt();
@@ -277,7 +306,7 @@ fn add_direct_light(
             if !(cos_l > 0.0 && wi.dot(ng) > 0.0 && local.z > 0.0) {
                 continue;
             }
-            if r.geometry.occluded(origin, wi, dist * (1.0 - 1e-4) - r.geometry.eps) {
+            if r.geometry().occluded(origin, wi, dist * (1.0 - 1e-4) - r.geometry().eps) {
                 continue;
             }
             let pdf = lp.pdf_area * dist2 / cos_l;
@@ -298,9 +327,9 @@ impl LightGrid {
         [self.radiance[o], self.radiance[o + 1], self.radiance[o + 2]]
     }
 
-    /// Write `dir/lightgrid.json` and `dir/lightgrid.bin` (format in the module docs).
+    /// Write `dir/lightgrid.json` and `dir/lightgrid.bin` (format in the module docs) into the
+    /// existing folder `dir`; [`LightGrid::write_folder`] makes a new folder whole.
     pub fn save(&self, dir: &Path) -> Result<(), RenderError> {
-        std::fs::create_dir_all(dir).map_err(|e| RenderError::io(dir, e))?;
         let (gw, gh) = (self.grid_width, self.grid_height);
         let mut bin: Vec<u8> = Vec::new();
         let mut arrays = Vec::new();
@@ -341,5 +370,14 @@ impl LightGrid {
         image_io::atomic_write(&dir.join("lightgrid.bin"), &bin)?;
         let text = serde_json::to_vec_pretty(&header).map_err(|e| RenderError::Invalid(e.to_string()))?;
         image_io::atomic_write(&dir.join("lightgrid.json"), &text)
+    }
+
+    /// Write the grid (see [`LightGrid::save`]) as the new folder `dest`, which appears whole or
+    /// not at all; an existing `dest` is refused unless `replace` is `Replace::Yes`.
+    pub fn write_folder(&self, dest: &Path, replace: Replace) -> Result<(), RenderError> {
+        let staged = StagedDir::new(dest, replace)?;
+        self.save(staged.path())?;
+        staged.commit()?;
+        Ok(())
     }
 }

@@ -113,6 +113,7 @@ impl Texture {
     pub fn load(path: &Path, srgb: bool) -> Result<Self, RenderError> {
         let is_exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
         if srgb && !is_exr && path.is_file() {
+            image_io::dimensions(path)?;
             let img = image::open(path).map_err(|e| RenderError::image(path, e))?;
             if matches!(
                 img.color(),

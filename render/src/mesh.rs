@@ -7,6 +7,8 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
+use psc_base::progress::{self, NoProgress, Progress};
+
 use crate::RenderError;
 
 /// What the MTL says about a part (used for default materials only; the fit ignores it).
@@ -70,9 +72,44 @@ fn scan_obj(text: &str) -> (Vec<String>, Vec<String>) {
     (usemtl, mtllibs)
 }
 
+/// Counts the bytes the OBJ parser consumes, for progress.
+struct Counting<'a> {
+    inner: &'a [u8],
+    progress: &'a dyn Progress,
+}
+
+impl std::io::Read for Counting<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.progress.advance(n as u64);
+        Ok(n)
+    }
+}
+
 /// Load an OBJ (and its MTL files). Problems that still allow a render become warnings.
 pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, RenderError> {
-    let text = std::fs::read_to_string(path).map_err(|e| RenderError::io(path, e))?;
+    load_obj_with_progress(path, warnings, &NoProgress)
+}
+
+/// [`load_obj`], reporting the stage "loading <file>" in bytes parsed to `progress`.
+pub fn load_obj_with_progress(
+    path: &Path,
+    warnings: &mut Vec<String>,
+    progress: &dyn Progress,
+) -> Result<Mesh, RenderError> {
+    let text = crate::json::read_text(path, "OBJ mesh")?;
+    let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+    progress::stage(progress, &format!("loading {name}"), Some(text.len() as u64), "bytes", || {
+        load_obj_text(path, text, warnings, progress)
+    })
+}
+
+fn load_obj_text(
+    path: &Path,
+    text: String,
+    warnings: &mut Vec<String>,
+    progress: &dyn Progress,
+) -> Result<Mesh, RenderError> {
     let dir = path.parent().unwrap_or(Path::new("."));
     let (usemtl, mtllibs) = scan_obj(&text);
 
@@ -102,7 +139,9 @@ pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, RenderE
         if mtllibs.is_empty() && !usemtl.is_empty() { format!("mtllib __psc_synthetic.mtl\n{text}") } else { text };
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
     let mats_for_loader = materials.clone();
-    let (models, _) = tobj::load_obj_buf(&mut source.as_bytes(), &options, |_| {
+    // (A synthetic mtllib line adds a few bytes beyond the file's size to the count.)
+    let mut reader = BufReader::new(Counting { inner: source.as_bytes(), progress });
+    let (models, _) = tobj::load_obj_buf(&mut reader, &options, |_| {
         Ok((mats_for_loader.clone(), mats_for_loader.iter().enumerate().map(|(i, m)| (m.name.clone(), i)).collect()))
     })
     .map_err(|e| RenderError::Obj { path: path.to_path_buf(), message: e.to_string() })?;

@@ -8,13 +8,7 @@ pub struct Rng {
     inc: u64,
 }
 
-/// SplitMix64 finaliser: a good 64-bit mixing function.
-#[inline]
-pub fn mix64(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
+pub use psc_base::mix64;
 
 impl Rng {
     /// A stream determined by three keys (typically seed, pixel index, sample index).

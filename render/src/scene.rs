@@ -14,12 +14,16 @@ use std::sync::Arc;
 use glam::Vec3;
 use serde::Deserialize;
 
+use psc_base::progress::{NoProgress, Progress};
+
 use crate::camera::{Camera, CameraSpec};
 use crate::emitters::EnvMap;
 use crate::image_io;
 use crate::material::{ImageMaterial, MaterialBinding, Texture};
 use crate::mesh::{self, Mesh};
 use crate::RenderError;
+
+pub use crate::lights::LightRadiances;
 
 pub const FORMAT: &str = "photoscene-scene/1";
 
@@ -112,6 +116,14 @@ fn require_file(root: &Path, rel: &str, what: &str) -> Result<PathBuf, RenderErr
     }
 }
 
+impl View {
+    /// Every pixel of the photo, linear RGB (decoded from sRGB for PNG/JPEG); errors name the
+    /// file.
+    pub fn read_photo(&self) -> Result<image_io::RgbImage, RenderError> {
+        image_io::read_rgb(&self.image, true)
+    }
+}
+
 impl Scene {
     /// Load `dir/scene.json` and everything it names.
     pub fn load(dir: &Path) -> Result<Scene, RenderError> {
@@ -121,9 +133,18 @@ impl Scene {
     /// Like [`Scene::load`] but with another OBJ in place of the manifest's mesh (e.g. the dev
     /// scenes' `truth/scene_true.obj` for validation).
     pub fn load_with_mesh(dir: &Path, mesh_override: Option<&Path>) -> Result<Scene, RenderError> {
+        Self::load_with_progress(dir, mesh_override, &NoProgress)
+    }
+
+    /// [`Scene::load_with_mesh`], reporting the loading of the mesh (in bytes parsed) to
+    /// `progress`.
+    pub fn load_with_progress(
+        dir: &Path,
+        mesh_override: Option<&Path>,
+        progress: &dyn Progress,
+    ) -> Result<Scene, RenderError> {
         let manifest_path = dir.join("scene.json");
-        let text = std::fs::read_to_string(&manifest_path).map_err(|e| RenderError::io(&manifest_path, e))?;
-        let m: Manifest = serde_json::from_str(&text).map_err(|e| RenderError::json(&manifest_path, &e))?;
+        let m: Manifest = crate::json::read(&manifest_path, "scene manifest (scene.json)")?;
         let mut warnings = Vec::new();
         match m.format.as_deref() {
             Some(FORMAT) => {}
@@ -149,7 +170,7 @@ impl Scene {
             Some(p) => p.to_path_buf(),
             None => require_file(dir, &m.mesh, "mesh")?,
         };
-        let mesh = mesh::load_obj(&mesh_path, &mut warnings)?;
+        let mesh = mesh::load_obj_with_progress(&mesh_path, &mut warnings, progress)?;
 
         let mut views: Vec<View> = Vec::new();
         for v in &m.views {
@@ -239,6 +260,9 @@ impl Scene {
 fn load_view(dir: &Path, v: &ViewSpec, mesh: &Mesh, warnings: &mut Vec<String>) -> Result<View, RenderError> {
     let image = require_file(dir, &v.image, &format!("photo of view '{}'", v.name))?;
     let (width, height) = image_io::dimensions(&image)?;
+    // Decode every pixel once: a truncated or corrupt photo is an error naming the file now,
+    // not when the fit reads it.
+    image_io::read_rgb(&image, true)?;
     let camera = Camera::new(&v.camera, width, height, &format!("view '{}'", v.name))?;
     let mut part_labels = BTreeMap::new();
     for (key, name) in &v.part_labels {
@@ -322,103 +346,4 @@ fn ceiling_lights(mesh: &Mesh, up: Vec3) -> Vec<LightSource> {
         }
     }
     lights
-}
-
-/// Radiance (linear RGB) of each light and the environment scale. `psc render` takes them from
-/// `--lights lights.json`, else from `truth/truth.json` next to the scene (dev convenience; the
-/// fit never reads truth/), else unit radiance.
-#[derive(Clone, Debug)]
-pub struct LightRadiances {
-    /// One entry per [`Scene::lights`], same order.
-    pub lights: Vec<[f32; 3]>,
-    pub environment: [f32; 3],
-    /// Where the values came from, for messages.
-    pub source: String,
-}
-
-#[derive(Deserialize)]
-struct LightsFile {
-    #[serde(default)]
-    lights: Vec<LightEntry>,
-    environment_scale: Option<ScalarOrRgb>,
-}
-
-#[derive(Deserialize)]
-struct LightEntry {
-    name: String,
-    radiance_rgb: Option<ScalarOrRgb>,
-    radiance: Option<ScalarOrRgb>,
-}
-
-#[derive(Deserialize, Clone, Copy)]
-#[serde(untagged)]
-enum ScalarOrRgb {
-    Scalar(f32),
-    Rgb([f32; 3]),
-}
-
-impl ScalarOrRgb {
-    fn rgb(self) -> [f32; 3] {
-        match self {
-            ScalarOrRgb::Scalar(s) => [s; 3],
-            ScalarOrRgb::Rgb(c) => c,
-        }
-    }
-}
-
-impl LightRadiances {
-    pub fn unit(scene: &Scene) -> Self {
-        LightRadiances {
-            lights: vec![[1.0; 3]; scene.lights.len()],
-            environment: [1.0; 3],
-            source: "unit radiance".into(),
-        }
-    }
-
-    /// Read a lights file: `{"lights": [{"name": "ceiling0", "radiance_rgb": [r, g, b]}, ...],
-    /// "environment_scale": s or [r, g, b]}` (`radiance` is accepted for `radiance_rgb`, a scalar
-    /// for an RGB triple). truth.json has this shape too. Lights the file does not name keep unit
-    /// radiance, with a warning.
-    pub fn from_file(path: &Path, scene: &Scene, warnings: &mut Vec<String>) -> Result<Self, RenderError> {
-        let text = std::fs::read_to_string(path).map_err(|e| RenderError::io(path, e))?;
-        let f: LightsFile = serde_json::from_str(&text).map_err(|e| RenderError::json(path, &e))?;
-        let mut out = Self::unit(scene);
-        out.source = path.display().to_string();
-        for (i, l) in scene.lights.iter().enumerate() {
-            match f.lights.iter().find(|e| e.name == l.name) {
-                Some(e) => match e.radiance_rgb.or(e.radiance) {
-                    Some(r) => out.lights[i] = r.rgb(),
-                    None => {
-                        return Err(RenderError::Invalid(format!(
-                            "{}: light '{}' has no radiance_rgb",
-                            path.display(),
-                            l.name
-                        )))
-                    }
-                },
-                None => warnings.push(format!("{}: no radiance for light '{}'; using 1", path.display(), l.name)),
-            }
-        }
-        for e in &f.lights {
-            if !scene.lights.iter().any(|l| l.name == e.name) {
-                warnings.push(format!("{}: light '{}' is not in the scene", path.display(), e.name));
-            }
-        }
-        if let Some(s) = f.environment_scale {
-            out.environment = s.rgb();
-        }
-        Ok(out)
-    }
-
-    /// `--lights`, else `truth/truth.json`, else unit radiance.
-    pub fn resolve(scene: &Scene, lights_file: Option<&Path>, warnings: &mut Vec<String>) -> Result<Self, RenderError> {
-        if let Some(p) = lights_file {
-            return Self::from_file(p, scene, warnings);
-        }
-        let truth = scene.root.join("truth").join("truth.json");
-        if truth.is_file() {
-            return Self::from_file(&truth, scene, warnings);
-        }
-        Ok(Self::unit(scene))
-    }
 }

@@ -9,6 +9,7 @@ use std::sync::Arc;
 
 use serde::Deserialize;
 
+use crate::lights::{LightEntry, LightRadiances, LightsFile};
 use crate::material::{ImageMaterial, MaterialBinding, Texture};
 use crate::scene::Scene;
 use crate::RenderError;
@@ -19,6 +20,14 @@ struct TruthFile {
     parts: Vec<TruthPart>,
     #[serde(default)]
     linear_views: std::collections::BTreeMap<String, String>,
+    #[serde(default)]
+    lights: Vec<TruthLight>,
+}
+
+#[derive(Deserialize)]
+struct TruthLight {
+    name: String,
+    radiance_rgb: crate::lights::Rgb,
 }
 
 #[derive(Deserialize)]
@@ -42,8 +51,18 @@ pub fn truth_dir(scene_root: &Path) -> PathBuf {
 
 fn read(scene_root: &Path) -> Result<TruthFile, RenderError> {
     let path = truth_dir(scene_root).join("truth.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| RenderError::io(&path, e))?;
-    serde_json::from_str(&text).map_err(|e| RenderError::json(&path, &e))
+    crate::json::read(&path, "truth file (truth/truth.json)")
+}
+
+/// The true light radiances of a dev scene (`--lights truth`; validation only).
+pub fn truth_radiances(scene: &Scene, warnings: &mut Vec<String>) -> Result<LightRadiances, RenderError> {
+    let truth = read(&scene.root)?;
+    let file = LightsFile {
+        lights: truth.lights.into_iter().map(|l| LightEntry { name: l.name, radiance_rgb: l.radiance_rgb }).collect(),
+        environment_scale: None,
+    };
+    let origin = truth_dir(&scene.root).join("truth.json").display().to_string();
+    Ok(LightRadiances::from_lights_file(&file, scene, &origin, warnings))
 }
 
 /// The truth materials for the scene's parts; parts truth.json lacks get the MTL material (with

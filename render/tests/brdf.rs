@@ -31,9 +31,9 @@ fn formulas_match_the_issue_text() {
     let want = Vec3::new(0.2, 0.4, 0.6) / PI + Vec3::splat(spec);
     assert!((got - want).abs().max_element() < 1e-5, "{got} vs {want}");
     assert!((ggx_d(1.0, r) - d).abs() < 1e-5);
-    assert!((fresnel(1.0) - f).abs() < 1e-7);
-    assert!((fresnel(0.0) - 1.0).abs() < 1e-6);
-    assert!((g1(1.0, r) - 1.0).abs() < 1e-6);
+    assert!((fresnel(1.0f32) - f).abs() < 1e-7);
+    assert!((fresnel(0.0f32) - 1.0).abs() < 1e-6);
+    assert!((g1(1.0f32, r) - 1.0).abs() < 1e-6);
     // An off-normal configuration against a direct evaluation.
     let (wo, wi) = (dir(0.7, 0.3), dir(0.4, 2.5));
     let h = (wo + wi).normalize();

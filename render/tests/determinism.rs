@@ -52,3 +52,66 @@ fn per_light_images_sum_to_the_render() {
         }
     }
 }
+
+/// The test room with a second, small lamp in a corner: with two lights the power-weighted
+/// light selection depends on the radiances.
+fn two_lamp_scene() -> Scene {
+    let dir = temp_dir("two-lamps");
+    write_scene(&dir);
+    std::fs::write(
+        dir.join("lights/corner.obj"),
+        "v 0.2 2.49 0.2\nv 0.5 2.49 0.2\nv 0.5 2.49 0.5\nv 0.2 2.49 0.5\nvn 0 -1 0\nf 1//1 2//1 3//1 4//1\n",
+    )
+    .unwrap();
+    let manifest = std::fs::read_to_string(dir.join("scene.json")).unwrap().replace(
+        r#"{ "name": "lamp", "mesh": "lights/lamp.obj" }"#,
+        r#"{ "name": "lamp", "mesh": "lights/lamp.obj" }, { "name": "corner", "mesh": "lights/corner.obj" }"#,
+    );
+    std::fs::write(dir.join("scene.json"), manifest).unwrap();
+    let scene = Scene::load(&dir).unwrap();
+    assert_eq!(scene.lights.len(), 2);
+    scene
+}
+
+#[test]
+fn a_renderer_retargeted_to_new_radiances_renders_as_one_built_with_them() {
+    let scene = two_lamp_scene();
+    let mut w = Vec::new();
+    let cam = &scene.views[0].camera;
+    let mut first = LightRadiances::unit(&scene);
+    first.lights = vec![[1.0; 3], [40.0, 30.0, 20.0]];
+    let mut second = LightRadiances::unit(&scene);
+    second.lights = vec![[6.0, 5.0, 4.0], [0.5; 3]];
+
+    let fresh = Renderer::new(&scene, scene.mtl_materials(&mut w), &second).unwrap();
+    let mut retargeted = Renderer::new(&scene, scene.mtl_materials(&mut w), &first).unwrap();
+    let before = retargeted.render(cam, &opts(3, 2)).unwrap();
+    retargeted.set_radiances(&second).unwrap();
+    let want = fresh.render(cam, &opts(3, 2)).unwrap();
+    let got = retargeted.render(cam, &opts(3, 2)).unwrap();
+    assert_eq!(got.image, want.image, "re-targeted vs freshly built");
+    assert_eq!(got.rays, want.rays, "the same paths: the light selection was rebuilt");
+    assert_ne!(before.image, got.image);
+    assert_eq!(retargeted.radiances().lights, second.lights);
+}
+
+#[test]
+fn invalid_radiances_are_refused_and_change_nothing() {
+    let scene = two_lamp_scene();
+    let mut w = Vec::new();
+    let good = LightRadiances::unit(&scene);
+    let mut r = Renderer::new(&scene, scene.mtl_materials(&mut w), &good).unwrap();
+    for bad in [
+        vec![[1.0; 3]],
+        vec![[1.0; 3], [-1.0, 0.0, 0.0]],
+        vec![[f32::NAN; 3], [1.0; 3]],
+        vec![[f32::INFINITY; 3], [1.0; 3]],
+    ] {
+        let mut l = good.clone();
+        l.lights = bad.clone();
+        let e = r.set_radiances(&l).expect_err("refused").to_string();
+        assert!(e.contains("radiance") || e.contains("lights"), "{e}");
+        assert!(Renderer::new(&scene, scene.mtl_materials(&mut w), &l).is_err(), "{bad:?}");
+    }
+    assert_eq!(r.radiances().lights, good.lights);
+}

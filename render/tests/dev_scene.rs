@@ -12,7 +12,7 @@ fn agreement(scene: &Scene) -> f64 {
     let view = &scene.views[0];
     let mut w = Vec::new();
     let r = Renderer::new(scene, scene.mtl_materials(&mut w), &LightRadiances::unit(scene)).unwrap();
-    let gb = render_gbuffer(&r.geometry, &view.camera, &r.part_names, &r.lights.names, None);
+    let gb = render_gbuffer(r.geometry(), &view.camera, r.part_names(), &r.lights().names, None).unwrap();
     let (agree, total) = label_agreement(&gb, &view.labels.as_ref().unwrap().data, &view.part_labels);
     agree as f64 / total as f64
 }
@@ -60,12 +60,12 @@ fn truth_error(dir: &std::path::Path, truth_materials: bool) -> (f64, f64, f64) 
     } else {
         scene.mtl_materials(&mut warnings)
     };
-    let radiances = LightRadiances::resolve(&scene, None, &mut warnings).unwrap();
+    let radiances = LightRadiances::resolve(&scene, &psc_render::LightsSource::Truth, &mut warnings).unwrap();
     assert!(radiances.source.ends_with("truth.json"));
     let r = Renderer::new(&scene, materials, &radiances).unwrap();
     let view = &scene.views[0];
     let (w, h) = (view.width / 2, view.height / 2);
-    let cam = rescale(&view.camera, w, h);
+    let cam = rescale(&view.camera, w, h).unwrap();
     let out = r.render(&cam, &RenderOptions { width: w, height: h, spp: 16, seed: 1, ..Default::default() }).unwrap();
     let truth_img = image_io::read_rgb(&truth::truth_linear_view(&scene, "view0").unwrap(), false).unwrap();
     let t = downsample(&truth_img.data, truth_img.width, truth_img.height);

@@ -122,7 +122,8 @@ impl Library {
 
 /// The library folder shipped with photoscene (`graphs/` at the repository root).
 pub fn default_library_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join("graphs")
+    let runtime_crate = Path::new(env!("CARGO_MANIFEST_DIR"));
+    runtime_crate.parent().unwrap_or(runtime_crate).join("graphs")
 }
 
 /// Every `.psg` file under `root`, sorted, excluding `std/` module folders.

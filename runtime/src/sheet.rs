@@ -1,9 +1,15 @@
 //! Contact sheets of the material library: every graph at its defaults and a few random
-//! variants, each baked small and shown as a flat sample lit by a fixed directional light
-//! (Lambert + GGX, seen from straight above), with its name written under it.
+//! variants, each baked small and shown as a flat sample lit by a fixed directional light and a
+//! soft ambient term, seen from straight above, with its name written under it.
+//!
+//! The shading is the renderer's Karis BRDF (`psc_render::brdf`), the one the path tracer and
+//! the fit use, so a sheet shows a material as a render will: dielectric with F0 = 0.05, the
+//! metallic channel ignored (the renderer has none).
 
 use std::io;
 use std::path::Path;
+
+use psc_render::brdf::{clamp_roughness, specular, Cosines};
 
 use crate::bake::{linear_to_srgb, Maps};
 
@@ -15,43 +21,31 @@ pub struct Cell {
 
 /// Light direction (towards the light): from the upper left of the image, 40° above the plane.
 const LIGHT: [f32; 3] = [-0.45, 0.55, 0.70];
-const LIGHT_RADIANCE: f32 = 2.6;
+/// Irradiance of the light on a plane facing it (so a white Lambertian facing it shows 1.3).
+const LIGHT_IRRADIANCE: f32 = 1.3 * std::f32::consts::PI;
 const AMBIENT: f32 = 0.22;
+/// Presentation only: highlights of near-mirror texels are capped before tone mapping.
+const MAX_SPECULAR: f32 = 8.0;
 
 fn normalize(v: [f32; 3]) -> [f32; 3] {
     let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().max(1e-12);
     [v[0] / l, v[1] / l, v[2] / l]
 }
 
-fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// Shades one texel: linear RGB out.
-pub fn shade_texel(albedo: [f32; 3], roughness: f32, metallic: f32, normal: [f32; 3]) -> [f32; 3] {
+/// Shades one texel (tangent-space normal; the viewer is straight above): linear RGB out.
+pub fn shade_texel(albedo: [f32; 3], roughness: f32, normal: [f32; 3]) -> [f32; 3] {
     let n = normalize(normal);
     let l = normalize(LIGHT);
-    let v = [0.0, 0.0, 1.0];
-    let h = normalize([l[0] + v[0], l[1] + v[1], l[2] + v[2]]);
-    let nl = dot(n, l).max(0.0);
-    let nv = dot(n, v).max(1e-4);
-    let nh = dot(n, h).max(0.0);
-    let vh = dot(v, h).max(0.0);
-    let a = (roughness * roughness).max(1e-3);
-    let a2 = a * a;
-    let d = a2 / (std::f32::consts::PI * (nh * nh * (a2 - 1.0) + 1.0).powi(2));
-    let k = a / 2.0;
-    let g = (nl / (nl * (1.0 - k) + k)) * (nv / (nv * (1.0 - k) + k));
-    let m = metallic.clamp(0.0, 1.0);
+    let (c, _) = Cosines::new(n, [0.0, 0.0, 1.0], l);
+    let r = clamp_roughness(roughness);
+    let spec = specular(c, r).min(MAX_SPECULAR);
+    let n_l = c.n_l.max(0.0);
     let mut out = [0.0; 3];
-    for c in 0..3 {
-        let f0 = 0.04 * (1.0 - m) + albedo[c] * m;
-        let f = f0 + (1.0 - f0) * (1.0 - vh).powi(5);
-        let spec = d * g * f / (4.0 * nl.max(1e-4) * nv);
-        let diffuse = albedo[c] * (1.0 - m) / std::f32::consts::PI;
-        // A soft environment term so that metals are not black away from the highlight.
-        let env = AMBIENT * (albedo[c] * (1.0 - m) + f0 * (1.0 - 0.6 * roughness) * (0.6 + 0.4 * n[2]));
-        out[c] = env + LIGHT_RADIANCE * nl * (diffuse * std::f32::consts::PI * 0.5 + spec.min(8.0) * 0.5);
+    for k in 0..3 {
+        let a = if albedo[k].is_finite() { albedo[k].max(0.0) } else { 0.0 };
+        // The ambient term carries a little of the specular colour so glossy samples read as such.
+        let ambient = AMBIENT * (a + psc_render::brdf::F0 * (1.0 - 0.6 * r) * (0.6 + 0.4 * n[2]));
+        out[k] = ambient + LIGHT_IRRADIANCE * (a / std::f32::consts::PI + spec) * n_l;
     }
     out
 }
@@ -63,7 +57,7 @@ pub fn shade(maps: &Maps) -> Vec<u8> {
     for k in 0..n {
         let a = [maps.albedo[3 * k], maps.albedo[3 * k + 1], maps.albedo[3 * k + 2]];
         let nn = [maps.normal[3 * k], maps.normal[3 * k + 1], maps.normal[3 * k + 2]];
-        let c = shade_texel(a, maps.roughness[k], maps.metallic[k], nn);
+        let c = shade_texel(a, maps.roughness[k], nn);
         for x in c {
             let s = if x.is_finite() { linear_to_srgb(x / (1.0 + 0.15 * x)) } else { 1.0 };
             out.push((s.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);

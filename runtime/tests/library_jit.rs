@@ -4,8 +4,9 @@
 use psc_compiler::interp::{self, Batch};
 use std::sync::OnceLock;
 
-use psc_runtime::bake::{random_params, Rng};
+use psc_base::SplitMix64 as Rng;
 use psc_runtime::library::{default_library_root, Library};
+use psc_runtime::params::ParamSpace;
 
 /// Compiled once for all tests of this file: JIT-compiling 31 graphs twice is wasted time.
 fn library() -> &'static Library {
@@ -26,8 +27,11 @@ fn jit_matches_the_interpreter_on_every_library_graph() {
     let n = 512;
     for m in &lib.materials {
         for trial in 0..3 {
-            let params =
-                if trial == 0 { m.graph.info.default_params() } else { random_params(&m.graph.info, &mut rng) };
+            let params = if trial == 0 {
+                m.graph.info.default_params()
+            } else {
+                ParamSpace::new(&m.graph.info).random(&mut rng)
+            };
             // Points inside and outside the unit tile.
             let u: Vec<f32> = (0..n).map(|_| rng.next_f32() * 3.0 - 1.0).collect();
             let v: Vec<f32> = (0..n).map(|_| rng.next_f32() * 3.0 - 1.0).collect();
@@ -59,7 +63,7 @@ fn jit_adjoint_matches_the_interpreter_adjoint() {
     let mut rng = Rng(12345);
     let n = 256;
     for m in &lib.materials {
-        let params = random_params(&m.graph.info, &mut rng);
+        let params = ParamSpace::new(&m.graph.info).random(&mut rng);
         let u: Vec<f32> = (0..n).map(|_| rng.next_f32()).collect();
         let v: Vec<f32> = (0..n).map(|_| rng.next_f32()).collect();
         let seeds: Vec<Vec<f32>> = (0..9).map(|_| (0..n).map(|_| rng.next_f32() - 0.5).collect()).collect();

@@ -1,1 +1,5 @@
-//! Integration tests live in tests/tests/.
+//! `psc-tests`: cross-crate integration tests (in `tests/`) and the helpers they share.
+
+#![forbid(unsafe_code)]
+
+pub mod dev_scenes;

@@ -40,7 +40,7 @@ impl GeometryContext {
 
     /// Names of the light slots: the area lights, then "environment" if the scene has one.
     pub fn slot_names(&self) -> &[String] {
-        &self.renderer.slot_names
+        self.renderer.slot_names()
     }
 
     pub fn light_names(&self) -> Vec<String> {
@@ -65,7 +65,8 @@ impl GeometryContext {
     /// The MTL materials with the parts an assignment file names replaced by library graphs.
     pub fn assigned_materials(&self, path: &Path, library: &Library) -> Result<Vec<MaterialBinding>, EvalError> {
         let mut bindings = self.mtl_materials();
-        psc_runtime::assign::apply_assignment(path, library, self.part_names(), &mut bindings).map_err(EvalError)?;
+        psc_runtime::assign::apply_assignment(path, library, self.part_names(), &mut bindings)
+            .map_err(|e| EvalError(e.to_string()))?;
         Ok(bindings)
     }
 
@@ -79,7 +80,7 @@ impl GeometryContext {
         render: &RenderSettings,
     ) -> Result<Vec<Image>, EvalError> {
         let camera = Camera::new(camera, width, height, "eval camera")?;
-        self.renderer.materials = materials.to_vec();
+        self.renderer.set_materials(materials.to_vec())?;
         let opts = RenderOptions {
             width,
             height,
@@ -87,7 +88,6 @@ impl GeometryContext {
             seed: render.seed,
             max_depth: render.max_depth,
             threads: render.threads,
-            progress: false,
             per_light: true,
             ..Default::default()
         };
@@ -103,7 +103,7 @@ impl GeometryContext {
         height: usize,
     ) -> Result<(Vec<u16>, Vec<[f32; 2]>), EvalError> {
         let camera = Camera::new(camera, width, height, "eval camera")?;
-        let gb = render_gbuffer(&self.renderer.geometry, &camera, self.part_names(), &self.renderer.lights.names, None);
+        let gb = render_gbuffer(self.renderer.geometry(), &camera, self.part_names(), &self.renderer.lights().names, None)?;
         let n_parts = self.part_names().len() as u16;
         let ids = gb.part_id.into_iter().map(|id| if id > n_parts { 0 } else { id }).collect();
         Ok((ids, gb.uv))

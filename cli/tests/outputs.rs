@@ -1,0 +1,83 @@
+//! Output sets are whole or absent: a bake is written into a staged folder and appears at once;
+//! an existing folder is refused unless `--force`, and then replaced whole (never a mix of old
+//! and new files); a bake that fails part-way leaves nothing, not even temporaries.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn psc(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_psc"))
+        .args(args)
+        .current_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join(".."))
+        .output()
+        .expect("psc runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("psc-outputs-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .map(|d| d.map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect())
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn an_existing_bake_folder_is_refused_or_replaced_whole() {
+    let dir = scratch("force");
+    let out = dir.join("maps");
+    let o = psc(&["bake", "knit", "--size", "8", "--random", "1", "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let first = names(&out);
+    assert_eq!(first.len(), 12, "{first:?}");
+    std::fs::write(out.join("mine.txt"), "a file of the user's").unwrap();
+
+    // Without --force: refused before any work, folder untouched.
+    let o = psc(&["bake", "plaster", "--size", "8", "--out", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("already exists") && stderr(&o).contains("--force"), "{}", stderr(&o));
+    assert!(out.join("mine.txt").is_file() && names(&out).len() == 13);
+
+    // With --force: the new set replaces the old one whole.
+    let o = psc(&["bake", "plaster", "--size", "8", "--out", out.to_str().unwrap(), "--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let now = names(&out);
+    assert!(now.iter().all(|n| n.starts_with("plaster_")), "old files left beside new ones: {now:?}");
+    assert_eq!(names(&dir), ["maps"], "no temporaries beside the output");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_bake_that_fails_part_way_leaves_nothing() {
+    let dir = scratch("partial");
+    // At its default the graph is finite; a random variant with `blow = 1` gives an infinite
+    // height, which the bake refuses after the first maps were written.
+    let graph = dir.join("fragile.psg");
+    std::fs::write(
+        &graph,
+        "graph fragile {\n    param blow = 0 in [0, 1] int\n    output albedo = 0.5\n    output roughness = 0.5\n    output height = (uv.x + 1.0) / (1.0 - blow)\n}\n",
+    )
+    .unwrap();
+    let out = dir.join("maps");
+    let o = Command::new(env!("CARGO_BIN_EXE_psc"))
+        .args(["bake", graph.to_str().unwrap(), "--size", "8", "--random", "8", "--out", out.to_str().unwrap()])
+        .env("PSC_PROGRESS_SECONDS", "0")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("fragile_random") && stderr(&o).contains("non-finite"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("bake: 10% (1/9"), "the defaults were baked and written first: {}", stderr(&o));
+    assert!(!out.exists(), "a failed bake left {:?}", names(&out));
+    assert_eq!(names(&dir), ["fragile.psg"], "temporaries left behind");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,51 @@
+//! Reading the crate's JSON files (scene.json, camera, lights, truth) with errors that name the
+//! file, the line and column, and the field (`views[0].camera.fov_y_deg`), and say what was
+//! expected and what was found.
+
+use std::path::Path;
+
+use serde::de::DeserializeOwned;
+
+use crate::RenderError;
+
+/// Read a file that must exist and be a regular file (a directory or a missing path gets its
+/// own message, naming `what` the file is for).
+pub fn read_text(path: &Path, what: &str) -> Result<String, RenderError> {
+    check_file(path, what)?;
+    std::fs::read_to_string(path).map_err(|e| RenderError::io(path, e))
+}
+
+/// `Ok` when `path` is a regular file; otherwise an error saying whether it is missing or a
+/// directory (or something else), and what was expected.
+pub fn check_file(path: &Path, what: &str) -> Result<(), RenderError> {
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => Ok(()),
+        Ok(m) if m.is_dir() => Err(RenderError::io(path, format!("is a directory; expected {what} (a file)"))),
+        Ok(_) => Err(RenderError::io(path, format!("is not a regular file; expected {what}"))),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(RenderError::io(path, format!("{what} not found"))),
+        Err(e) => Err(RenderError::io(path, format!("cannot read {what}: {e}"))),
+    }
+}
+
+/// Parse `text` (the contents of `path`) as a `T`.
+pub fn parse<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T, RenderError> {
+    let de = &mut serde_json::Deserializer::from_str(text);
+    let value: T = serde_path_to_error::deserialize(&mut *de).map_err(|e| {
+        let field = e.path().to_string();
+        let mut err = RenderError::json(path, e.inner());
+        if let RenderError::Json { message, .. } = &mut err {
+            if field != "." {
+                *message = format!("field `{field}`: {message}");
+            }
+        }
+        err
+    })?;
+    de.end().map_err(|e| RenderError::json(path, &e))?;
+    Ok(value)
+}
+
+/// Read and parse a JSON file (`what` names it in errors: "scene manifest", "lights file").
+pub fn read<T: DeserializeOwned>(path: &Path, what: &str) -> Result<T, RenderError> {
+    let text = read_text(path, what)?;
+    parse(path, &text)
+}

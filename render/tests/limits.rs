@@ -1,0 +1,136 @@
+//! Requests over the resource limits are refused before anything is allocated, with the limit
+//! and the memory they would need; photos and label images whose headers claim huge sizes, and
+//! truncated photos, are errors naming the file.
+
+mod common;
+
+use common::*;
+use psc_render::camera::Camera;
+use psc_render::{compute_light_grid, LightGridOptions, LightRadiances, RenderError, RenderOptions, Renderer, Scene};
+
+fn renderer() -> (Scene, Renderer) {
+    let dir = temp_dir("limits");
+    write_scene(&dir);
+    let scene = Scene::load(&dir).unwrap();
+    let mut w = Vec::new();
+    let r = Renderer::new(&scene, scene.mtl_materials(&mut w), &LightRadiances::unit(&scene)).unwrap();
+    (scene, r)
+}
+
+fn render_err(r: &Renderer, cam: &Camera, o: RenderOptions) -> String {
+    match r.render(cam, &o) {
+        Ok(_) => panic!("{o:?} should be refused"),
+        Err(e) => e.to_string(),
+    }
+}
+
+#[test]
+fn huge_images_spp_threads_and_depth_zero_are_refused() {
+    let (scene, r) = renderer();
+    let cam = &scene.views[0].camera;
+    let base = RenderOptions { width: 8, height: 6, spp: 1, ..Default::default() };
+    for (w, h) in [(100_000, 100_000), (65_536, 65_536), (99_999_999_999, 2), (4_294_967_295, 4_294_967_295)] {
+        let e = render_err(&r, cam, RenderOptions { width: w, height: h, ..base.clone() });
+        assert!(e.contains(&format!("{w}x{h}")) && e.contains("67,108,864 pixels") && e.contains("memory"), "{e}");
+    }
+    let e = render_err(&r, cam, RenderOptions { spp: 1_000_000, ..base.clone() });
+    assert!(e.contains("samples per pixel") && e.contains("65,536"), "{e}");
+    let e = render_err(&r, cam, RenderOptions { threads: Some(100_000), ..base.clone() });
+    assert!(e.contains("100,000 threads") && e.contains("256"), "{e}");
+    let e = render_err(&r, cam, RenderOptions { max_depth: 0, ..base.clone() });
+    assert!(e.contains("max_depth 0 renders nothing"), "{e}");
+    assert!(r.render(cam, &base).is_ok());
+}
+
+#[test]
+fn cameras_and_grids_over_the_limits_are_refused() {
+    let (scene, r) = renderer();
+    let spec = &scene.views[0].camera_spec;
+    let e = Camera::new(spec, 100_000, 100_000, "camera.json").unwrap_err().to_string();
+    assert!(e.contains("camera.json") && e.contains("67,108,864"), "{e}");
+    // A grid at every pixel of an 8192² image fits the pixel limit but not the memory budget.
+    let big = Camera::new(spec, 8192, 8192, "big").unwrap();
+    let o = LightGridOptions { stride: 1, ..Default::default() };
+    let e = compute_light_grid(&r, &big, &o).err().expect("refused").to_string();
+    assert!(e.contains("light grid of 8192x8192 cells") && e.contains("GiB"), "{e}");
+    let cam = &scene.views[0].camera;
+    let o = LightGridOptions { samples_per_bin: 1_000_000, ..Default::default() };
+    let e = compute_light_grid(&r, cam, &o).err().expect("refused").to_string();
+    assert!(e.contains("paths per bin") && e.contains("4,096"), "{e}");
+    let o = LightGridOptions { max_depth: 1, ..Default::default() };
+    let e = compute_light_grid(&r, cam, &o).err().expect("refused").to_string();
+    assert!(e.contains("max_depth of at least 2"), "{e}");
+}
+
+/// CRC-32 (PNG's), bitwise.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xffff_ffffu32;
+    for &b in bytes {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 { 0xedb8_8320 ^ (c >> 1) } else { c >> 1 };
+        }
+    }
+    !c
+}
+
+/// A ~60-byte PNG whose header claims `w`×`h` (8-bit, colour `color_type`) and whose data is
+/// one empty IDAT.
+fn lying_png(w: u32, h: u32, color_type: u8) -> Vec<u8> {
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut chunk = |kind: &[u8], data: &[u8]| {
+        out.extend_from_slice(&(data.len() as u32).to_be_bytes());
+        let mut body = kind.to_vec();
+        body.extend_from_slice(data);
+        out.extend_from_slice(&body);
+        out.extend_from_slice(&crc32(&body).to_be_bytes());
+    };
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(&w.to_be_bytes());
+    ihdr.extend_from_slice(&h.to_be_bytes());
+    ihdr.extend_from_slice(&[8, color_type, 0, 0, 0]);
+    chunk(b"IHDR", &ihdr);
+    chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01]);
+    chunk(b"IEND", &[]);
+    out
+}
+
+fn load_err(dir: &std::path::Path) -> RenderError {
+    match Scene::load(dir) {
+        Ok(_) => panic!("{} should not load", dir.display()),
+        Err(e) => e,
+    }
+}
+
+#[test]
+fn photos_and_labels_with_huge_headers_are_refused_naming_the_file() {
+    let dir = temp_dir("huge-photo");
+    write_scene(&dir);
+    std::fs::write(dir.join("views/view0.png"), lying_png(100_000, 100_000, 2)).unwrap();
+    // Without labels too: the photo alone is checked.
+    let manifest = std::fs::read_to_string(dir.join("scene.json")).unwrap();
+    std::fs::write(dir.join("scene.json"), manifest.replace(r#""parts": "views/view0_parts.png","#, "")).unwrap();
+    let e = load_err(&dir).to_string();
+    assert!(e.contains("view0.png") && e.contains("100000x100000") && e.contains("67,108,864"), "{e}");
+
+    let dir = temp_dir("huge-labels");
+    write_scene(&dir);
+    std::fs::write(dir.join("views/view0_parts.png"), lying_png(100_000, 100_000, 0)).unwrap();
+    let e = load_err(&dir).to_string();
+    assert!(e.contains("view0_parts.png") && e.contains("67,108,864"), "{e}");
+}
+
+#[test]
+fn a_truncated_photo_is_an_error_naming_the_file() {
+    let dir = temp_dir("truncated-photo");
+    write_scene(&dir);
+    let p = dir.join("views/view0.png");
+    let bytes = std::fs::read(&p).unwrap();
+    std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+    let e = load_err(&dir).to_string();
+    assert!(e.contains("view0.png"), "{e}");
+    // Same for a lying header with a small size but no pixel data.
+    std::fs::write(&p, lying_png(W as u32, H as u32, 2)).unwrap();
+    let e = load_err(&dir).to_string();
+    assert!(e.contains("view0.png"), "{e}");
+}
