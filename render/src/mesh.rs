@@ -191,7 +191,8 @@ fn load_obj_text(
             }
             let p = [pos[idx[0]], pos[idx[1]], pos[idx[2]]];
             let ng = (p[1] - p[0]).cross(p[2] - p[0]);
-            if !(ng.length_squared() > 1e-20) || !p.iter().all(|v| v.is_finite()) {
+            let area2 = ng.length_squared();
+            if area2.is_nan() || area2 <= 1e-20 || !p.iter().all(|v| v.is_finite()) {
                 degenerate += 1;
                 continue;
             }

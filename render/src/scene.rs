@@ -161,7 +161,7 @@ impl Scene {
             }
         }
         let up = Vec3::from(m.up.unwrap_or([0.0, 1.0, 0.0]));
-        if !(up.length() > 1e-6) || !up.is_finite() {
+        if !up.is_finite() || up.length() <= 1e-6 {
             return Err(RenderError::Invalid(format!("{}: \"up\" must be a non-zero vector", manifest_path.display())));
         }
         let up = up.normalize();
