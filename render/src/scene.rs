@@ -202,7 +202,7 @@ impl Scene {
             Some(p) => p.to_path_buf(),
             None => require_file(dir, &m.mesh, "mesh")?,
         };
-        let mesh = mesh::load_obj_with_progress(&mesh_path, &mut warnings, progress)?;
+        let mesh = mesh::load_obj_in(&mesh_path, dir, &mut warnings, progress)?;
 
         let mut views: Vec<View> = Vec::new();
         for v in &m.views {
@@ -229,7 +229,7 @@ impl Scene {
                         )));
                     }
                     let p = require_file(dir, &l.mesh, &format!("mesh of light '{}'", l.name))?;
-                    let triangles = mesh::load_emitter(&p, &mut warnings)?;
+                    let triangles = mesh::load_emitter_in(&p, dir, &mut warnings)?;
                     lights.push(LightSource { name: l.name.clone(), triangles });
                 }
             }
