@@ -151,6 +151,12 @@ impl<T: Real> Cosines<T> {
     }
 }
 
+/// `x > 0`, false for NaN (the BRDF's support test).
+#[inline(always)]
+pub(crate) fn positive<T: Real>(x: T) -> bool {
+    x > T::lit(0.0)
+}
+
 #[inline(always)]
 pub(crate) fn dot<T: Real>(a: [T; 3], b: [T; 3]) -> T {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -160,9 +166,8 @@ pub(crate) fn dot<T: Real>(a: [T; 3], b: [T; 3]) -> T {
 /// `roughness` is used as given (see [`clamp_roughness`]).
 #[inline]
 pub fn specular<T: Real>(c: Cosines<T>, roughness: T) -> T {
-    let zero = T::lit(0.0);
-    if !(c.n_v > zero) || !(c.n_l > zero) {
-        return zero;
+    if !positive(c.n_v) || !positive(c.n_l) {
+        return T::lit(0.0);
     }
     let d = ggx_d(c.n_h, roughness);
     let f = fresnel(c.v_h);
@@ -381,7 +386,7 @@ impl KarisWo {
             return None;
         }
         let (f, pdf) = self.eval_pdf(wi);
-        if !(pdf > 0.0) || !pdf.is_finite() {
+        if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() {
             return None;
         }
         let weight = f * (wi.z / pdf);

@@ -177,7 +177,9 @@ impl Bvh {
     /// degenerate meshes (a binary tree thousands of levels deep) cannot overflow the stack.
     fn collapse(&mut self, bvh2: &Bvh2, root: usize, triangles: &[[Vec3; 3]]) {
         // (binary node, depth, parent 4-wide node and slot to link it from)
-        let mut work: Vec<(usize, usize, Option<(usize, usize)>)> = vec![(root, 1, None)];
+        // (binary node, depth, the 4-wide parent's (node, slot) to link it into)
+        type Work = (usize, usize, Option<(usize, usize)>);
+        let mut work: Vec<Work> = vec![(root, 1, None)];
         while let Some((n, depth, parent)) = work.pop() {
             self.depth = self.depth.max(depth);
             let first = bvh2.nodes[n].first_index as usize;

@@ -9,6 +9,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::RenderError;
 
+/// Largest camera coordinate accepted (scene units): beyond it f32 ray origins lose the precision
+/// the tracer's offsets need (1e7 m already gives metre-sized steps).
+pub const MAX_COORDINATE: f32 = 1e7;
+
 fn default_up() -> [f32; 3] {
     [0.0, 1.0, 0.0]
 }
@@ -44,9 +48,16 @@ impl Camera {
     /// Validate `spec` (`context` names it in errors, e.g. "view view0").
     pub fn new(spec: &CameraSpec, width: usize, height: usize, context: &str) -> Result<Camera, RenderError> {
         let err = |m: &str| Err(RenderError::Camera { context: context.to_string(), message: m.to_string() });
-        let finite = |v: [f32; 3]| v.iter().all(|c| c.is_finite());
-        if !finite(spec.position) || !finite(spec.look_at) || !finite(spec.up) || !spec.fov_y_deg.is_finite() {
-            return err("non-finite number");
+        for (field, v) in [("position", spec.position), ("look_at", spec.look_at), ("up", spec.up)] {
+            if let Some(c) = v.iter().find(|c| !c.is_finite() || c.abs() > MAX_COORDINATE) {
+                return err(&format!(
+                    "{field} {v:?} has {c:e}; expected finite coordinates within ±{MAX_COORDINATE:e} scene units (f32 \
+                     rays cannot be placed precisely further out)"
+                ));
+            }
+        }
+        if !spec.fov_y_deg.is_finite() {
+            return err(&format!("fov_y_deg must be a finite number of degrees, got {}", spec.fov_y_deg));
         }
         if width == 0 || height == 0 {
             return err("zero image size");
@@ -60,16 +71,20 @@ impl Camera {
         let position = Vec3::from(spec.position);
         let dir = Vec3::from(spec.look_at) - position;
         if dir.length() < 1e-6 {
-            return err("position and look_at coincide");
+            return err(&format!("position and look_at coincide ({:?})", spec.position));
         }
         let forward = dir.normalize();
         let up_hint = Vec3::from(spec.up);
         if up_hint.length() < 1e-6 {
-            return err("zero up vector");
+            return err(&format!("zero up vector {:?}", spec.up));
         }
         let right = forward.cross(up_hint.normalize());
         if right.length() < 1e-4 {
-            return err("up vector parallel to the viewing direction");
+            return err(&format!(
+                "up vector {:?} is parallel to the viewing direction {:?} (from position to look_at)",
+                spec.up,
+                forward.to_array()
+            ));
         }
         let right = right.normalize();
         let up = right.cross(forward);

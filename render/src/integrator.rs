@@ -499,7 +499,8 @@ impl Renderer {
             depth += 1;
             if depth >= cfg.rr_depth {
                 let q = beta.max_element().min(0.95);
-                if !(st.rng.next_f32() < q) {
+                let u = st.rng.next_f32();
+                if u.is_nan() || u >= q {
                     return;
                 }
                 beta /= q;

@@ -29,6 +29,7 @@ pub mod lightgrid;
 pub mod lights;
 pub mod material;
 pub mod mesh;
+mod mtl;
 pub mod rng;
 pub mod scene;
 pub mod truth;

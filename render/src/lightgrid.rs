@@ -212,8 +212,8 @@ pub fn compute_light_grid_with_progress(
                                 r.li(origin, dir, &cfg, &mut st);
                             }
                         }
-                        for k in 0..ns {
-                            cell.slots[k * BINS + b] = acc[k] * inv;
+                        for (k, a) in acc.iter().enumerate() {
+                            cell.slots[k * BINS + b] = *a * inv;
                         }
                     }
                 }
@@ -239,9 +239,9 @@ pub fn compute_light_grid_with_progress(
     for (c, cell) in cells.iter().enumerate() {
         for b in 0..BINS {
             let mut sum = Vec3::ZERO;
-            for k in 0..ns {
+            for (k, radiance_k) in r.slot_radiance().iter().enumerate() {
                 let v = cell.slots[k * BINS + b];
-                sum += v * r.slot_radiance()[k];
+                sum += v * *radiance_k;
                 if opts.per_light {
                     per_slot[k].1[(c * BINS + b) * 3..(c * BINS + b) * 3 + 3].copy_from_slice(&v.to_array());
                 }
@@ -334,7 +334,7 @@ impl LightGrid {
         let mut bin: Vec<u8> = Vec::new();
         let mut arrays = Vec::new();
         let mut push = |name: &str, dtype: &str, shape: Vec<usize>, bytes: Vec<u8>, bin: &mut Vec<u8>| {
-            while bin.len() % 16 != 0 {
+            while !bin.len().is_multiple_of(16) {
                 bin.push(0);
             }
             arrays

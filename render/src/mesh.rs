@@ -53,19 +53,23 @@ impl Mesh {
     }
 }
 
-fn scan_obj(text: &str) -> (Vec<String>, Vec<String>) {
-    let mut usemtl = Vec::new();
+/// A name in an OBJ and the (1-based) line it appears on.
+type AtLine = (String, usize);
+
+/// `usemtl` names (first use, with its line) and `mtllib` files (with their lines).
+fn scan_obj(text: &str) -> (Vec<AtLine>, Vec<AtLine>) {
+    let mut usemtl: Vec<AtLine> = Vec::new();
     let mut mtllibs = Vec::new();
-    for line in text.lines() {
+    for (i, line) in text.lines().enumerate() {
         let mut it = line.split_whitespace();
         match it.next() {
             Some("usemtl") => {
                 let name = it.collect::<Vec<_>>().join(" ");
-                if !usemtl.contains(&name) {
-                    usemtl.push(name);
+                if !usemtl.iter().any(|(n, _)| *n == name) {
+                    usemtl.push((name, i + 1));
                 }
             }
-            Some("mtllib") => mtllibs.extend(it.map(str::to_string)),
+            Some("mtllib") => mtllibs.extend(it.map(|f| (f.to_string(), i + 1))),
             _ => {}
         }
     }
@@ -86,7 +90,8 @@ impl std::io::Read for Counting<'_> {
     }
 }
 
-/// Load an OBJ (and its MTL files). Problems that still allow a render become warnings.
+/// Load an OBJ (and its MTL files, which must be in the OBJ's folder or below). Problems that
+/// still allow a render become warnings.
 pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, RenderError> {
     load_obj_with_progress(path, warnings, &NoProgress)
 }
@@ -97,46 +102,87 @@ pub fn load_obj_with_progress(
     warnings: &mut Vec<String>,
     progress: &dyn Progress,
 ) -> Result<Mesh, RenderError> {
+    load_obj_in(path, path.parent().unwrap_or(Path::new(".")), warnings, progress)
+}
+
+/// [`load_obj_with_progress`] for an OBJ of the scene folder `root`: the MTL files and textures
+/// it names must stay inside `root` (others are not read, with a warning).
+pub fn load_obj_in(
+    path: &Path,
+    root: &Path,
+    warnings: &mut Vec<String>,
+    progress: &dyn Progress,
+) -> Result<Mesh, RenderError> {
     let text = crate::json::read_text(path, "OBJ mesh")?;
     let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
     progress::stage(progress, &format!("loading {name}"), Some(text.len() as u64), "bytes", || {
-        load_obj_text(path, text, warnings, progress)
+        load_obj_text(path, root, text, warnings, progress)
     })
+}
+
+/// `dir/file` if it stays inside `root` (see [`crate::scene::confined`]).
+fn inside(root: &Path, dir: &Path, file: &str, what: &str) -> Result<PathBuf, RenderError> {
+    match dir.strip_prefix(root) {
+        Ok(rel_dir) => crate::scene::confined(root, &rel_dir.join(file).to_string_lossy(), what),
+        Err(_) => crate::scene::confined(dir, file, what),
+    }
 }
 
 fn load_obj_text(
     path: &Path,
+    root: &Path,
     text: String,
     warnings: &mut Vec<String>,
     progress: &dyn Progress,
 ) -> Result<Mesh, RenderError> {
     let dir = path.parent().unwrap_or(Path::new("."));
     let (usemtl, mtllibs) = scan_obj(&text);
+    let obj = path.display();
 
-    // Load the MTL files ourselves, then add an empty material for every usemtl name they lack,
-    // so that each usemtl name survives as a part even with a missing or partial MTL.
+    // Read the MTL files ourselves (with line numbers in every warning), then add an empty
+    // material for every usemtl name they lack, so that each usemtl name survives as a part
+    // even with a missing or partial MTL.
     let mut materials: Vec<tobj::Material> = Vec::new();
-    for lib in &mtllibs {
-        let p = dir.join(lib);
-        match std::fs::File::open(&p) {
-            Ok(f) => match tobj::load_mtl_buf(&mut BufReader::new(f)) {
-                Ok((mats, _)) => materials.extend(mats),
-                Err(e) => warnings.push(format!(
-                    "{}: cannot parse MTL ({e}); parts keep their names, default materials",
-                    p.display()
-                )),
-            },
-            Err(_) => warnings
-                .push(format!("{}: MTL file not found; parts keep their usemtl names, default materials", p.display())),
+    let mut read_any = false;
+    for (lib, line) in &mtllibs {
+        let p = match inside(root, dir, lib, "MTL file") {
+            Ok(p) => p,
+            Err(e) => {
+                warnings.push(format!("{obj}:{line}: mtllib not read: {e}"));
+                continue;
+            }
+        };
+        match crate::json::read_text(&p, "MTL file") {
+            Ok(t) => {
+                read_any = true;
+                materials.extend(crate::mtl::parse(&p, &t, warnings));
+            }
+            Err(e) => warnings.push(format!("{obj}:{line}: {e}; parts keep their usemtl names, default materials")),
         }
     }
-    for name in &usemtl {
+    for m in &mut materials {
+        for (tex, kind) in [(&mut m.diffuse_texture, "map_Kd texture"), (&mut m.normal_texture, "norm texture")] {
+            if let Some(t) = tex.as_deref() {
+                if let Err(e) = inside(root, dir, t, kind) {
+                    warnings.push(format!("material '{}': {e}; not read", m.name));
+                    *tex = None;
+                }
+            }
+        }
+    }
+    for (name, line) in &usemtl {
         if !materials.iter().any(|m| &m.name == name) {
+            if read_any {
+                warnings.push(format!(
+                    "{obj}:{line}: usemtl '{name}' is not defined in the MTL file(s); part '{name}' gets the default \
+                     material"
+                ));
+            }
             materials.push(tobj::Material { name: name.clone(), ..Default::default() });
         }
     }
-    let source =
-        if mtllibs.is_empty() && !usemtl.is_empty() { format!("mtllib __psc_synthetic.mtl\n{text}") } else { text };
+    let synthetic = mtllibs.is_empty() && !usemtl.is_empty();
+    let source = if synthetic { format!("mtllib __psc_synthetic.mtl\n{text}") } else { text };
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
     let mats_for_loader = materials.clone();
     // (A synthetic mtllib line adds a few bytes beyond the file's size to the count.)
@@ -144,7 +190,10 @@ fn load_obj_text(
     let (models, _) = tobj::load_obj_buf(&mut reader, &options, |_| {
         Ok((mats_for_loader.clone(), mats_for_loader.iter().enumerate().map(|(i, m)| (m.name.clone(), i)).collect()))
     })
-    .map_err(|e| RenderError::Obj { path: path.to_path_buf(), message: e.to_string() })?;
+    .map_err(|e| RenderError::Obj {
+        path: path.to_path_buf(),
+        message: describe_obj_error(&source, usize::from(synthetic), &e),
+    })?;
 
     let mut mesh = Mesh::default();
     let mut any_normals = false;
@@ -191,7 +240,8 @@ fn load_obj_text(
             }
             let p = [pos[idx[0]], pos[idx[1]], pos[idx[2]]];
             let ng = (p[1] - p[0]).cross(p[2] - p[0]);
-            if !(ng.length_squared() > 1e-20) || !p.iter().all(|v| v.is_finite()) {
+            let area2 = ng.length_squared();
+            if area2.is_nan() || area2 <= 1e-20 || !p.iter().all(|v| v.is_finite()) {
                 degenerate += 1;
                 continue;
             }
@@ -247,11 +297,98 @@ fn load_obj_text(
     Ok(mesh)
 }
 
+/// tobj's errors carry no line: find the first line of `text` that is not a valid OBJ statement
+/// (numbers where numbers belong, face indices that refer to vertices defined before them) and
+/// name it; `skip` lines at the top are ours (a synthetic mtllib).
+fn describe_obj_error(text: &str, skip: usize, e: &tobj::LoadError) -> String {
+    match first_bad_line(text) {
+        Some((line, problem, content)) => {
+            let shown: String = content.chars().take(80).collect();
+            let more = if content.chars().count() > 80 { "…" } else { "" };
+            format!("line {}: {problem} (found '{shown}{more}')", line.saturating_sub(skip))
+        }
+        None => format!("cannot parse the OBJ: {e}"),
+    }
+}
+
+/// (1-based line, what is wrong, the line) of the first invalid statement.
+fn first_bad_line(text: &str) -> Option<(usize, String, &str)> {
+    let (mut nv, mut nt, mut nn) = (0i64, 0i64, 0i64);
+    let floats = |it: std::str::SplitWhitespace, min: usize, max: usize| {
+        let v: Option<Vec<f32>> = it.map(|t| t.parse::<f32>().ok()).collect();
+        v.is_some_and(|v| v.len() >= min && v.len() <= max)
+    };
+    // An index i of n defined so far: 1..=n, or -n..=-1 (relative); 0 is never valid.
+    let index_ok = |t: &str, n: i64| t.parse::<i64>().is_ok_and(|i| (i >= 1 && i <= n) || (i < 0 && -i <= n));
+    for (k, line) in text.lines().enumerate() {
+        let mut it = line.split_whitespace();
+        let Some(kw) = it.next() else { continue };
+        let bad = |what: &str| Some((k + 1, what.to_string(), line.trim()));
+        match kw {
+            "v" => {
+                if !floats(it, 3, 7) {
+                    return bad("a vertex needs three numbers x y z");
+                }
+                nv += 1;
+            }
+            "vt" => {
+                if !floats(it, 1, 3) {
+                    return bad("a texture coordinate needs one to three numbers");
+                }
+                nt += 1;
+            }
+            "vn" => {
+                if !floats(it, 3, 3) {
+                    return bad("a normal needs three numbers");
+                }
+                nn += 1;
+            }
+            "f" | "l" | "p" => {
+                let corners: Vec<&str> = it.collect();
+                let need = match kw {
+                    "f" => 3,
+                    "l" => 2,
+                    _ => 1,
+                };
+                if corners.len() < need {
+                    return bad(&format!("'{kw}' needs at least {need} vertices"));
+                }
+                for c in corners {
+                    let mut parts = c.split('/');
+                    let v = parts.next().unwrap_or("");
+                    if !index_ok(v, nv) {
+                        return bad(&format!("vertex index '{v}' is not one of the {nv} vertices defined so far"));
+                    }
+                    if let Some(t) = parts.next().filter(|t| !t.is_empty()) {
+                        if !index_ok(t, nt) {
+                            return bad(&format!(
+                                "texture index '{t}' is not one of the {nt} texture coordinates defined so far"
+                            ));
+                        }
+                    }
+                    if let Some(n) = parts.next().filter(|n| !n.is_empty()) {
+                        if !index_ok(n, nn) {
+                            return bad(&format!("normal index '{n}' is not one of the {nn} normals defined so far"));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
 /// Load an emitter mesh: triangles whose winding gives the emitting side. When the OBJ has
 /// vertex normals and they disagree with the winding, the winding is flipped to follow them.
 pub fn load_emitter(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<[Vec3; 3]>, RenderError> {
+    load_emitter_in(path, path.parent().unwrap_or(Path::new(".")), warnings)
+}
+
+/// [`load_emitter`] for an emitter of the scene folder `root` (see [`load_obj_in`]).
+pub fn load_emitter_in(path: &Path, root: &Path, warnings: &mut Vec<String>) -> Result<Vec<[Vec3; 3]>, RenderError> {
     let mut local = Vec::new();
-    let mesh = load_obj(path, &mut local)?;
+    let mesh = load_obj_in(path, root, &mut local, &NoProgress)?;
     // Missing uvs are irrelevant for an emitter; keep other warnings.
     warnings.extend(local.into_iter().filter(|w| !w.contains("no texture coordinates")));
     let mut tris = Vec::with_capacity(mesh.triangles.len());

@@ -108,12 +108,44 @@ pub struct Scene {
 }
 
 fn require_file(root: &Path, rel: &str, what: &str) -> Result<PathBuf, RenderError> {
-    let p = root.join(rel);
-    if p.is_file() {
-        Ok(p)
-    } else {
-        Err(RenderError::Io { path: p, message: format!("{what} not found") })
+    let p = confined(root, rel, what)?;
+    crate::json::check_file(&p, what)?;
+    Ok(p)
+}
+
+/// `root/rel`, refused unless it stays inside the scene folder `root`: files a scene names are
+/// part of the scene, so absolute paths and `..` or symbolic links that lead outside are errors
+/// (a scene from elsewhere must not make the loader read `/etc/shadow`).
+pub fn confined(root: &Path, rel: &str, what: &str) -> Result<PathBuf, RenderError> {
+    let given = Path::new(rel);
+    let p = root.join(given);
+    if given.is_absolute() {
+        return Err(RenderError::io(
+            &p,
+            format!("{what}: absolute paths are not allowed; files named by a scene stay inside its folder"),
+        ));
     }
+    // Lexically first (also for files that do not exist yet), then through symbolic links.
+    let mut depth = 0i32;
+    for c in given.components() {
+        match c {
+            std::path::Component::ParentDir => depth -= 1,
+            std::path::Component::Normal(_) => depth += 1,
+            _ => {}
+        }
+        if depth < 0 {
+            return Err(RenderError::io(&p, format!("{what}: '{rel}' leads outside the scene folder")));
+        }
+    }
+    if let (Ok(real_root), Ok(real)) = (root.canonicalize(), p.canonicalize()) {
+        if !real.starts_with(&real_root) {
+            return Err(RenderError::io(
+                &p,
+                format!("{what}: '{rel}' leads outside the scene folder (to {})", real.display()),
+            ));
+        }
+    }
+    Ok(p)
 }
 
 impl View {
@@ -161,7 +193,7 @@ impl Scene {
             }
         }
         let up = Vec3::from(m.up.unwrap_or([0.0, 1.0, 0.0]));
-        if !(up.length() > 1e-6) || !up.is_finite() {
+        if !up.is_finite() || up.length() <= 1e-6 {
             return Err(RenderError::Invalid(format!("{}: \"up\" must be a non-zero vector", manifest_path.display())));
         }
         let up = up.normalize();
@@ -170,7 +202,7 @@ impl Scene {
             Some(p) => p.to_path_buf(),
             None => require_file(dir, &m.mesh, "mesh")?,
         };
-        let mesh = mesh::load_obj_with_progress(&mesh_path, &mut warnings, progress)?;
+        let mesh = mesh::load_obj_in(&mesh_path, dir, &mut warnings, progress)?;
 
         let mut views: Vec<View> = Vec::new();
         for v in &m.views {
@@ -197,7 +229,7 @@ impl Scene {
                         )));
                     }
                     let p = require_file(dir, &l.mesh, &format!("mesh of light '{}'", l.name))?;
-                    let triangles = mesh::load_emitter(&p, &mut warnings)?;
+                    let triangles = mesh::load_emitter_in(&p, dir, &mut warnings)?;
                     lights.push(LightSource { name: l.name.clone(), triangles });
                 }
             }

@@ -71,7 +71,7 @@ fn energy_white_furnace_bound() {
             assert!((d.x - 0.7).abs() < 0.01, "diffuse albedo {d} at r={r} θ={theta}");
             // Specular alone never creates energy.
             let s = directional_albedo(&Karis::new(Vec3::ZERO, r), wo).x;
-            assert!(s <= 1.0 && s >= 0.0, "specular albedo {s} at r={r} θ={theta}");
+            assert!((0.0..=1.0).contains(&s), "specular albedo {s} at r={r} θ={theta}");
             // With a white-ish albedo the sum stays bounded: f0 is small and the spec lobe at
             // most ~0.2 except at grazing angles with low roughness.
             let total = directional_albedo(&Karis::new(Vec3::splat(1.0 - s), r), wo).x;

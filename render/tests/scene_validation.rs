@@ -145,6 +145,9 @@ fn degenerate_cameras_are_errors() {
         (r#"{ "position": [2, 1, 3], "look_at": [2, 1, 1], "up": [0, 1, 0], "fov_y_deg": 200 }"#, "fov_y_deg"),
         (r#"{ "position": [2, 2, 2], "look_at": [2, 0, 2], "up": [0, 1, 0], "fov_y_deg": 60 }"#, "parallel"),
         (r#"{ "position": [2, 1, 3], "look_at": [2, 1, 1], "up": [0, 0, 0], "fov_y_deg": 60 }"#, "zero up"),
+        // Far beyond f32 precision: named as such, not as "up vector parallel".
+        (r#"{ "position": [1e38, 1, 3], "look_at": [2, 1, 1], "up": [0, 1, 0], "fov_y_deg": 60 }"#, "position"),
+        (r#"{ "position": [2, 1, 3], "look_at": [2, -1e20, 1], "up": [0, 1, 0], "fov_y_deg": 60 }"#, "look_at"),
     ];
     for (camera, expect) in cases {
         let dir = temp_dir("camera");
@@ -154,7 +157,65 @@ fn degenerate_cameras_are_errors() {
         assert!(matches!(e, RenderError::Camera { .. }), "{e}");
         let msg = e.to_string();
         assert!(msg.contains("view 'view0'") && msg.contains(expect), "{msg}");
+        assert!(expect == "parallel" || !msg.contains("parallel"), "{msg}");
     }
+}
+
+#[test]
+fn files_named_by_a_scene_stay_inside_it() {
+    for (mesh, expect) in [
+        ("../../../../etc/passwd", "outside the scene folder"),
+        ("/etc/passwd", "absolute paths are not allowed"),
+        ("views/../../x.obj", "outside the scene folder"),
+    ] {
+        let dir = temp_dir("confined");
+        write_scene(&dir);
+        let text = std::fs::read_to_string(dir.join("scene.json")).unwrap();
+        std::fs::write(dir.join("scene.json"), text.replace(r#""mesh": "room.obj""#, &format!(r#""mesh": "{mesh}""#)))
+            .unwrap();
+        let msg = load_err(&dir).to_string();
+        assert!(msg.contains(expect), "{mesh}: {msg}");
+    }
+    #[cfg(unix)]
+    {
+        // A symbolic link out of the folder is refused too.
+        let dir = temp_dir("confined-link");
+        write_scene(&dir);
+        std::os::unix::fs::symlink("/etc/hostname", dir.join("link.obj")).unwrap();
+        let text = std::fs::read_to_string(dir.join("scene.json")).unwrap();
+        std::fs::write(dir.join("scene.json"), text.replace(r#""mesh": "room.obj""#, r#""mesh": "link.obj""#)).unwrap();
+        let msg = load_err(&dir).to_string();
+        assert!(msg.contains("outside the scene folder"), "{msg}");
+    }
+}
+
+#[test]
+fn a_folder_where_a_file_is_expected_is_not_called_missing() {
+    let dir = temp_dir("dir-for-file");
+    write_scene(&dir);
+    std::fs::remove_file(dir.join("room.obj")).unwrap();
+    std::fs::create_dir(dir.join("room.obj")).unwrap();
+    let msg = load_err(&dir).to_string();
+    assert!(msg.contains("is a directory") && !msg.contains("not found"), "{msg}");
+    let msg = match Scene::load(&dir.join("views")) {
+        Ok(_) => panic!("no scene.json"),
+        Err(e) => e.to_string(),
+    };
+    assert!(msg.contains("scene.json") && msg.contains("not found"), "{msg}");
+}
+
+#[test]
+fn nested_arrays_in_scene_json_name_the_field() {
+    let dir = temp_dir("nested");
+    write_scene(&dir);
+    let text = std::fs::read_to_string(dir.join("scene.json")).unwrap();
+    std::fs::write(dir.join("scene.json"), text.replace(r#""mesh": "room.obj""#, r#""mesh": [["room.obj"]]"#)).unwrap();
+    let msg = load_err(&dir).to_string();
+    assert!(msg.contains("field `mesh`") && msg.contains("sequence") && msg.contains("string"), "{msg}");
+    let text = manifest(GOOD_CAMERA, GOOD_LABELS).replace(r#""fov_y_deg": 60.0"#, r#""fov_y_deg": [60]"#);
+    std::fs::write(dir.join("scene.json"), text).unwrap();
+    let msg = load_err(&dir).to_string();
+    assert!(msg.contains("views[0].camera.fov_y_deg"), "{msg}");
 }
 
 #[test]

@@ -15,7 +15,7 @@
 //! Derivatives with respect to v·h treat it as an independent variable; the clamp of v·h at 0
 //! in [`Cosines::new`] never binds for directions above the surface (v·h ≥ 0 there).
 
-use super::{fresnel, ggx_d, masking_k, specular, Cosines, Real, F0};
+use super::{fresnel, ggx_d, masking_k, positive, specular, Cosines, Real, F0};
 use std::f32::consts::{LN_2, PI};
 
 /// A value and its partial derivatives with respect to the roughness and the four cosines.
@@ -47,8 +47,8 @@ impl<T: Real> SpecularGrad<T> {
 /// The specular term `s = D·F·G / (4 n·v n·l)` and its derivatives. `value` equals
 /// [`specular`]`(c, roughness)` bit for bit.
 pub fn specular_grad<T: Real>(c: Cosines<T>, roughness: T) -> SpecularGrad<T> {
-    let (zero, one) = (T::lit(0.0), T::lit(1.0));
-    if !(c.n_v > zero) || !(c.n_l > zero) {
+    let one = T::lit(1.0);
+    if !positive(c.n_v) || !positive(c.n_l) {
         return SpecularGrad::zero();
     }
     let value = specular(c, roughness);
@@ -88,7 +88,7 @@ pub fn specular_grad<T: Real>(c: Cosines<T>, roughness: T) -> SpecularGrad<T> {
 /// `s·(n·l)`, the specular part of `f·cos θl`, and its derivatives.
 pub fn specular_cos_grad<T: Real>(c: Cosines<T>, roughness: T) -> SpecularGrad<T> {
     let g = specular_grad(c, roughness);
-    if !(c.n_v > T::lit(0.0)) || !(c.n_l > T::lit(0.0)) {
+    if !positive(c.n_v) || !positive(c.n_l) {
         return g;
     }
     SpecularGrad {
@@ -120,7 +120,7 @@ pub struct FCosGrad<T> {
 pub fn f_cos_grad<T: Real>(n: [T; 3], v: [T; 3], l: [T; 3], albedo: [T; 3], roughness: T) -> FCosGrad<T> {
     let zero = T::lit(0.0);
     let (c, h) = Cosines::new(n, v, l);
-    if !(c.n_v > zero) || !(c.n_l > zero) {
+    if !positive(c.n_v) || !positive(c.n_l) {
         return FCosGrad { value: [zero; 3], d_albedo: zero, d_roughness: zero, d_normal: [[zero; 3]; 3] };
     }
     let s = specular_cos_grad(c, roughness);

@@ -100,8 +100,18 @@ pub fn write_labels(dir: &Path, w: usize, h: usize) {
     psc_render::image_io::write_gray16(&dir.join("views/view0_parts.png"), w, h, &labels).unwrap();
 }
 
-/// The dev scenes, shared/ beside the checkout (CI layout); None when absent.
+/// The dev scene `name`, from shared/ beside the checkout (CI layout). When it is absent the
+/// test cannot run: outside CI that is said loudly on stderr and the caller skips (None); with
+/// the environment variable `CI` set (CI always has the scenes) it is a failure.
 pub fn dev_scene(name: &str) -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(name);
-    p.join("scene.json").is_file().then_some(p)
+    if p.join("scene.json").is_file() {
+        return Some(p);
+    }
+    let msg = format!("dev scene {} not found", p.display());
+    if std::env::var_os("CI").is_some() {
+        panic!("{msg}: CI must have shared/scenes beside the checkout");
+    }
+    eprintln!("\n*** TEST NOT RUN: {msg}; this test checked nothing (set up shared/scenes to run it) ***\n");
+    None
 }
