@@ -38,8 +38,8 @@ pub struct Args {
     /// Also render the true materials under the true lights (the floor).
     #[arg(long)]
     oracle: bool,
-    /// Rounds of the flat-fitted baseline's albedo update (on dev_4 the largest change per
-    /// round: 265%, 21%, 13%, 2.8%, 1.3%, 0.5%).
+    /// Rounds of the flat-fitted baseline's albedo update (the table shows the largest change
+    /// per round).
     #[arg(long, default_value_t = 5)]
     flat_iterations: u32,
     /// Samples per pixel of the flat fit's renders (at 16, the ceiling of dev_1, lit only

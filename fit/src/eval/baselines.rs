@@ -10,8 +10,8 @@
 //!   [0, 1], repeat (the repeats account for interreflections). A part's pixels: labelled as the
 //!   part in the photo, showing the part in the coarse model's G-buffer (where the model is
 //!   misaligned, the render there shows another part, whose light does not scale with this
-//!   part's albedo, and the update would drive it to 0 or 1), and not clipped in the photo
-//!   (every channel < 0.99). Roughness: the fitted material's mean roughness over the
+//!   part's albedo, and the update would drive it to 0 or 1), not on the part's boundary (both
+//!   masks eroded by one pixel), and not clipped in the photo (every channel < 0.99). Roughness: the fitted material's mean roughness over the
 //!   part's pixels in the input views (coarse-model G-buffers), for parts materials.json names
 //!   and the input views show; 0.7 otherwise. So flat fitted differs from the fit only in its
 //!   lack of texture and normal detail.
@@ -95,7 +95,8 @@ pub fn pixel_median(ctx: &GeometryContext, inputs: &[&EvalView], masks: &[Vec<u1
 }
 
 /// `masks` (photo labels as model part index + 1) kept only where the coarse model's G-buffer
-/// sees the same part.
+/// sees the same part, eroded by one pixel (a boundary pixel of the render mixes the part with
+/// its neighbours; the fit excludes them too).
 pub fn aligned_masks(
     ctx: &GeometryContext,
     inputs: &[&EvalView],
@@ -106,7 +107,19 @@ pub fn aligned_masks(
         .zip(masks)
         .map(|(v, mask)| {
             let (ids, _) = ctx.part_ids_and_uvs(&v.camera, v.width, v.height)?;
-            Ok(mask.iter().zip(&ids).map(|(&m, &g)| if m == g { m } else { 0 }).collect())
+            let (w, h) = (v.width, v.height);
+            let both: Vec<u16> = mask.iter().zip(&ids).map(|(&m, &g)| if m == g { m } else { 0 }).collect();
+            Ok((0..w * h)
+                .map(|i| {
+                    let (x, y) = (i % w, i / w);
+                    let inside = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
+                    if inside && [i - 1, i + 1, i - w, i + w].iter().all(|&j| both[j] == both[i]) {
+                        both[i]
+                    } else {
+                        0
+                    }
+                })
+                .collect())
         })
         .collect()
 }
@@ -142,12 +155,12 @@ pub fn constant_materials(albedo: &[[f32; 3]], roughness: &[f32]) -> Vec<Materia
     albedo.iter().zip(roughness).map(|(a, r)| backend::constant_material(*a, *r)).collect()
 }
 
-/// Flat-fitted albedos per part and, per round, the largest relative change and its part.
+/// Flat-fitted albedos per part and, per round, the largest albedo change and its part.
 pub type FlatFit = (Vec<[f32; 3]>, Vec<(f64, String)>);
 
 /// The flat-fitted albedos after `iterations` rounds of the mean-ratio update from `start`, and
-/// per round the largest change of a channel (|new − old| / old, over parts and channels) with
-/// the part it happened on, to show the convergence. `on_render` is called after each render (for progress).
+/// per round the largest change of a channel (|new − old| of the linear albedo, over parts and
+/// channels) with the part it happened on, to show the convergence. `on_render` is called after each render (for progress).
 #[allow(clippy::too_many_arguments)]
 pub fn flat_fit(
     ctx: &mut GeometryContext,
@@ -196,7 +209,9 @@ pub fn flat_fit(
                 if render_sum[i][k] > 0.0 {
                     let old = albedo[i][k] as f64;
                     let new = (old * photo_sum[i][k] / render_sum[i][k]).clamp(0.0, 1.0);
-                    let c = (new - old).abs() / old.max(1e-6);
+                    // Absolute: a dark channel sliding to its fixed point at 0 moves by a
+                    // large fraction of a tiny value.
+                    let c = (new - old).abs();
                     if c > change.0 {
                         change = (c, ctx.part_names()[i].clone());
                     }

@@ -209,7 +209,7 @@ pub struct Evaluation {
     pub pixel_median: Vec<[f32; 3]>,
     pub flat_albedo: Vec<[f32; 3]>,
     pub flat_roughness: Vec<f32>,
-    /// Per round of the flat fit, the largest relative change of an albedo channel, and its part.
+    /// Per round of the flat fit, the largest change of a linear albedo channel, and its part.
     pub flat_changes: Vec<(f64, String)>,
     /// Parts no input view shows (the baselines give them the median of all labelled pixels).
     pub unseen_parts: Vec<String>,

@@ -106,9 +106,8 @@ impl Evaluation {
             }
         }
         if !self.flat_changes.is_empty() {
-            let c: Vec<String> =
-                self.flat_changes.iter().map(|(c, part)| format!("{:.1}% ({part})", 100.0 * c)).collect();
-            s.push_str(&format!("flat fit: largest albedo change per round {}\n", c.join(", ")));
+            let c: Vec<String> = self.flat_changes.iter().map(|(c, part)| format!("{c:.4} ({part})")).collect();
+            s.push_str(&format!("flat fit: largest change of a linear albedo channel per round {}\n", c.join(", ")));
         }
         if !self.unseen_parts.is_empty() {
             s.push_str(&format!(
@@ -236,7 +235,7 @@ impl Evaluation {
                 "flat_fit_round_changes": self
                     .flat_changes
                     .iter()
-                    .map(|(c, part)| json!({"largest_relative_change": num(*c), "part": part}))
+                    .map(|(c, part)| json!({"largest_albedo_change": num(*c), "part": part}))
                     .collect::<Vec<_>>(),
                 "unseen_parts": self.unseen_parts,
             },
