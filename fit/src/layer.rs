@@ -165,11 +165,10 @@ impl PartView {
                 let inv = 1.0 / (b - a) as f32;
                 let mut sum = [0.0f32; 3];
                 for k in a..b {
-                    let albedo = [0, 1, 2].map(|c| cols[ALBEDO + c][k].max(0.0));
-                    let n = local_normal([cols[NORMAL][k], cols[NORMAL + 1][k], cols[NORMAL + 2][k]], rot, px);
+                    let n = local_normal(column_triple(cols, NORMAL, k), rot, px);
                     let e = px.light.irradiance(n.normal);
-                    for c in 0..3 {
-                        sum[c] += albedo[c] * e[c];
+                    for ((s, a), e) in sum.iter_mut().zip(column_triple(cols, ALBEDO, k)).zip(e) {
+                        *s += a.max(0.0) * e;
                     }
                 }
                 let (spec, _) = px.light.specular(state.roughness);
@@ -241,9 +240,9 @@ impl PartView {
                     let (a, b) = (first[p] as usize, first[p + 1] as usize);
                     let w = 1.0 / ((b - a) as f32 * std::f32::consts::PI);
                     for k in a..b {
-                        let raw = [0, 1, 2].map(|c| cols[ALBEDO + c][k]);
+                        let raw = column_triple(cols, ALBEDO, k);
                         let albedo = raw.map(|x| x.max(0.0));
-                        let tn = [cols[NORMAL][k], cols[NORMAL + 1][k], cols[NORMAL + 2][k]];
+                        let tn = column_triple(cols, NORMAL, k);
                         let n = local_normal(tn, rot, px);
                         let g = [0, 1, 2].map(|c| d_lin[c] * w * state.albedo_scale[c] * albedo[c]);
                         let (e, d_n) = px.light.irradiance_grad(n.normal, g);
@@ -401,6 +400,12 @@ fn chunk_seed_columns<'a>(columns: Vec<&'a mut [f32]>, first: &[u32], chunk: usi
         }
     }
     out
+}
+
+/// Three consecutive channel columns at sample `k`.
+#[inline]
+fn column_triple(cols: &[Vec<f32>], first: usize, k: usize) -> [f32; 3] {
+    [cols[first][k], cols[first + 1][k], cols[first + 2][k]]
 }
 
 /// d sRGB / d linear at x in (0, 1).

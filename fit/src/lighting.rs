@@ -175,8 +175,8 @@ pub fn pixel_median(views: &[ViewObservation], part: u32) -> Option<[f32; 3]> {
         let labels = obs.labels.as_ref().unwrap_or(&obs.geo.part);
         for (i, &l) in labels.iter().enumerate() {
             if l == part && !obs.photo.clipped(i) {
-                for c in 0..3 {
-                    values[c].push(obs.photo.linear[i][c]);
+                for (v, x) in values.iter_mut().zip(obs.photo.linear[i]) {
+                    v.push(x);
                 }
             }
         }
@@ -251,7 +251,7 @@ pub fn common_radiance(
             }
         }
     }
-    if count < 100 || rendered.iter().any(|&r| !(r > 0.0)) {
+    if count < 100 || rendered.iter().any(|&r| r.is_nan() || r <= 0.0) {
         return Err(FitError::Input(format!(
             "cannot estimate the light: only {count} photo pixels agree with the model and receive light \
              (give --lights with known radiances)"

@@ -222,7 +222,7 @@ pub fn surface_at(
 fn solve_uv(dpdu: Vec3, dpdv: Vec3, dp: Vec3) -> [f32; 2] {
     let (a, b, c) = (dpdu.dot(dpdu), dpdu.dot(dpdv), dpdv.dot(dpdv));
     let det = a * c - b * b;
-    if !(det.abs() > 1e-20) {
+    if det.is_nan() || det.abs() <= 1e-20 {
         return [0.0, 0.0];
     }
     let (r0, r1) = (dpdu.dot(dp), dpdv.dot(dp));

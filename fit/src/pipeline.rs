@@ -239,7 +239,7 @@ pub fn fit_scene(
         .views
         .iter()
         .map(|v| {
-            let obs = ViewObservation::new(v, &scene.mesh.part_names, &renderer.geometry());
+            let obs = ViewObservation::new(v, &scene.mesh.part_names, renderer.geometry());
             progress.advance(1);
             obs
         })
@@ -376,7 +376,7 @@ fn fit_one_part(
     for (v, list) in aligned.iter().enumerate() {
         let Some(a) = list.iter().find(|a| a.part == part && !a.usable.is_empty()) else { continue };
         let obs = &views[v];
-        let Some(view) = part_view(obs, a, &renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, 1.0)
+        let Some(view) = part_view(obs, a, renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, 1.0)
         else {
             continue;
         };
@@ -413,7 +413,7 @@ fn fit_one_part(
         return Ok(result);
     }
     let fit_view =
-        part_view(obs, chosen, &renderer.geometry(), &obs.camera, &shading[chosen.view], options.fit_pixels, 1.0)
+        part_view(obs, chosen, renderer.geometry(), &obs.camera, &shading[chosen.view], options.fit_pixels, 1.0)
             .expect("the search view of the same pixels exists");
     result.pixels.fitted = fit_view.pixels.len();
     let mut scratch = Scratch::default();
@@ -495,13 +495,15 @@ fn refit_appearance(
     let obs = &views[v];
     let mut ws = Workspace::default();
     if part.status == PartStatus::Homogeneous {
-        if let Some(view) = part_view(obs, a, &renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, 1.0) {
+        if let Some(view) = part_view(obs, a, renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, 1.0)
+        {
             let colour = flat_colour(homogeneous, &view, &mut ws)?;
             part.state = flat_state(homogeneous, colour, part.state.roughness);
         }
         return Ok(());
     }
-    let Some(fit_view) = part_view(obs, a, &renderer.geometry(), &obs.camera, &shading[v], options.fit_pixels, 1.0) else {
+    let Some(fit_view) = part_view(obs, a, renderer.geometry(), &obs.camera, &shading[v], options.fit_pixels, 1.0)
+    else {
         return Ok(());
     };
     let material = library.get(&part.graph).expect("fitted graphs come from the library");

@@ -104,9 +104,9 @@ impl LightSample {
     pub fn new(radiance: &[[f32; 3]; BINS], wo_local: Vec3) -> LightSample {
         let g = bins();
         let mut linear = [Vec3::ZERO; 3];
-        for b in 0..BINS {
-            for (c, l) in linear.iter_mut().enumerate() {
-                *l += g.moment[b] * radiance[b][c];
+        for (moment, l) in g.moment.iter().zip(radiance) {
+            for (acc, x) in linear.iter_mut().zip(l) {
+                *acc += *moment * *x;
             }
         }
         let mut specular = [[0.0f32; 3]; ROUGHNESS_STEPS];
@@ -114,11 +114,10 @@ impl LightSample {
             if wo_local.z > 1e-4 { wo_local.normalize() } else { Vec3::new(wo_local.x, wo_local.y, 1e-4).normalize() };
         for (j, s) in specular.iter_mut().enumerate() {
             let brdf = Karis::new(Vec3::ZERO, table_roughness(j));
-            for b in 0..BINS {
-                let l = g.centre[b];
-                let k = brdf.specular(wo, l) * l.z * g.omega[b];
-                for c in 0..3 {
-                    s[c] += k * radiance[b][c];
+            for ((&l, &omega), r) in g.centre.iter().zip(&g.omega).zip(radiance) {
+                let k = brdf.specular(wo, l) * l.z * omega;
+                for (acc, x) in s.iter_mut().zip(r) {
+                    *acc += k * x;
                 }
             }
         }
@@ -252,10 +251,10 @@ fn for_clipped_bins(n: Vec3, mut f: impl FnMut(usize, f32)) {
 pub fn irradiance_reference(radiance: &[[f32; 3]; BINS], n: Vec3) -> [f32; 3] {
     let g = bins();
     let mut e = [0.0f32; 3];
-    for b in 0..BINS {
-        let c = n.dot(g.moment[b]).max(0.0);
-        for k in 0..3 {
-            e[k] += c * radiance[b][k];
+    for (moment, l) in g.moment.iter().zip(radiance) {
+        let c = n.dot(*moment).max(0.0);
+        for (acc, x) in e.iter_mut().zip(l) {
+            *acc += c * x;
         }
     }
     e

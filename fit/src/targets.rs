@@ -60,8 +60,8 @@ pub fn part_view(
         } else {
             count[c] += 1;
         }
-        for k in 0..3 {
-            sum[c][k] += f64::from(obs.photo.linear[i as usize][k]);
+        for (acc, x) in sum[c].iter_mut().zip(obs.photo.linear[i as usize]) {
+            *acc += f64::from(x);
         }
         centre[c][0] += x as f64 + 0.5;
         centre[c][1] += y as f64 + 0.5;

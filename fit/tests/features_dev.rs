@@ -249,7 +249,8 @@ fn cases_of_scene(name: &str, dir: &Path, cap: usize) -> Vec<Case> {
         let (w, h) = (view.width, view.height);
         let labels = &view.labels.as_ref().unwrap().data;
         let camera2 = Camera::new(&view.camera_spec, 2 * w, 2 * h, "test").unwrap();
-        let gb = render_gbuffer(renderer.geometry(), &camera2, renderer.part_names(), &renderer.lights().names, None).unwrap();
+        let gb = render_gbuffer(renderer.geometry(), &camera2, renderer.part_names(), &renderer.lights().names, None)
+            .unwrap();
         for part in truth["parts"].as_array().unwrap() {
             let kind = part["kind"].as_str().unwrap();
             if !matches!(kind, "stripes" | "planks" | "photo" | "plaster") {

@@ -33,11 +33,11 @@ fn synthetic_view(rng: &mut SplitMix64) -> PartView {
     let (width, height) = (9, 7);
     let mut weight = vec![0.0; width * height];
     let mut pixels = Vec::new();
-    for c in 0..width * height {
+    for (c, w) in weight.iter_mut().enumerate() {
         if rng.next_f32() < 0.35 {
             continue;
         }
-        weight[c] = 1.0;
+        *w = 1.0;
         let f = 0.002 + 0.012 * rng.next_f32();
         let wo = Vec3::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 0.4 + rng.next_f32()).normalize();
         pixels.push(FitPixel {
@@ -145,8 +145,8 @@ fn check_graph(material: &Material, rng: &mut SplitMix64, tally: &mut Tally, who
     for p in &info.params {
         if p.is_continuous() {
             let (lo, hi) = p.bounds();
-            for s in p.slot..p.slot + p.width() {
-                params[s] = lo + (hi - lo) * (0.2 + 0.6 * rng.next_f32());
+            for x in &mut params[p.slot..p.slot + p.width()] {
+                *x = lo + (hi - lo) * (0.2 + 0.6 * rng.next_f32());
             }
         }
     }
@@ -339,7 +339,7 @@ fn irradiance_fast_path_equals_the_sum_over_every_bin() {
         let light = LightSample::new(&bins, Vec3::Z);
         // Normals from untilted to 80° tilt.
         let tilt = rng.next_f32() * 1.4;
-        let phi = rng.next_f32() * 6.283;
+        let phi = rng.next_f32() * std::f32::consts::TAU;
         let n = Vec3::new(tilt.sin() * phi.cos(), tilt.sin() * phi.sin(), tilt.cos());
         let n64 = n.to_array().map(f64::from);
         let fast = light.irradiance(n);

@@ -141,10 +141,7 @@ fn graphs_are_found_by_file_or_library_name() {
     );
     assert_eq!(find_graph("oak_planks", None, None).unwrap().info.name, "oak_planks");
     assert!(matches!(find_graph("oak_plank", None, None), Err(LookupError::NoSuchGraph { .. })));
-    assert!(matches!(
-        find_graph("oak_planks", Some("walnut"), None),
-        Err(LookupError::NameConflict { .. })
-    ));
+    assert!(matches!(find_graph("oak_planks", Some("walnut"), None), Err(LookupError::NameConflict { .. })));
     assert!(matches!(find_graph(dir.to_str().unwrap(), None, None), Err(LookupError::IsADirectory(_))));
     assert!(matches!(find_graph("no/such.psg", None, None), Err(LookupError::NoSuchFile(_))));
     // A library of one file still finds graphs by name, not "the first one".

@@ -39,6 +39,8 @@
 //! the *forward* program already has a non-finite intermediate in a discarded branch
 //! (`select(c, 0, sqrt(v) / 0)`), forward mode routes around it but the adjoint is NaN, as in
 //! other reverse-mode systems (JAX's `where`). The runtime reports such intermediates anyway.
+//! So is a derivative that overflows f32 where the value does not (the slope of
+//! `pow(0.36, -87.3) ≈ 3e38` is about 9e38): not representable, and NaN in a discarded branch.
 
 pub mod forward;
 pub mod reverse;

@@ -103,7 +103,8 @@ impl GeometryContext {
         height: usize,
     ) -> Result<(Vec<u16>, Vec<[f32; 2]>), EvalError> {
         let camera = Camera::new(camera, width, height, "eval camera")?;
-        let gb = render_gbuffer(self.renderer.geometry(), &camera, self.part_names(), &self.renderer.lights().names, None)?;
+        let gb =
+            render_gbuffer(self.renderer.geometry(), &camera, self.part_names(), &self.renderer.lights().names, None)?;
         let n_parts = self.part_names().len() as u16;
         let ids = gb.part_id.into_iter().map(|id| if id > n_parts { 0 } else { id }).collect();
         Ok((ids, gb.uv))
