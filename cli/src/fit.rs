@@ -47,6 +47,12 @@ pub struct Args {
     /// Most gradient iterations per part.
     #[arg(long, default_value_t = 1000)]
     iterations: u32,
+    /// Most photo pixels a part is fitted on (larger parts: the window with the most usable pixels).
+    #[arg(long, default_value_t = 4096)]
+    fit_pixels: usize,
+    /// Rounds of light re-estimation and albedo/roughness re-fit after the first fit.
+    #[arg(long, default_value_t = 1)]
+    refit_rounds: usize,
     /// Size of the baked maps per part (0: none).
     #[arg(long, default_value_t = 1024)]
     texture_size: usize,
@@ -121,6 +127,8 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     options.forced = args.graphs.iter().cloned().collect::<BTreeMap<_, _>>();
     options.select.exemplars = args.exemplars;
     options.fit.max_iterations = args.iterations;
+    options.refit_rounds = args.refit_rounds;
+    options.fit_pixels = args.fit_pixels.max(1);
     let drawer = Drawer::new(args.quiet);
     let progress = FitProgress { drawer: &drawer, open: AtomicBool::new(false) };
     let result = fit_scene(&scene, &library, radiances.as_ref(), &options, &progress)?;

@@ -350,6 +350,69 @@ impl PartView {
         })
     }
 
+    /// The albedo scale whose render matches the photo's mean sRGB value per channel (the
+    /// weighted mean over the crop), from the last render of `state` in `ws`: the diffuse term
+    /// is linear in the scale, so each channel is a monotone one-dimensional search (bisection
+    /// on the log-scale) without evaluating the graph again.
+    pub fn mean_matching_albedo_scale(&self, state: &MaterialState, ws: &Workspace) -> [f32; 3] {
+        let total: f64 = self.pixels.iter().map(|px| f64::from(self.weight[px.crop_index as usize])).sum();
+        if total <= 0.0 {
+            return state.albedo_scale;
+        }
+        let target: [f64; 3] = [0, 1, 2].map(|c| {
+            self.pixels
+                .iter()
+                .map(|px| {
+                    let i = px.crop_index as usize;
+                    f64::from(self.weight[i]) * f64::from(self.target[i][c])
+                })
+                .sum::<f64>()
+                / total
+        });
+        // Per pixel: (weight, diffuse at scale 1, specular).
+        let terms: Vec<(f32, [f32; 3], [f32; 3])> = self
+            .pixels
+            .iter()
+            .zip(&ws.linear)
+            .map(|(px, l)| {
+                let (spec, _) = px.light.specular(state.roughness);
+                let diffuse = [0, 1, 2].map(|c| {
+                    if state.albedo_scale[c] > 0.0 {
+                        (l[c] - spec[c]) / state.albedo_scale[c]
+                    } else {
+                        0.0
+                    }
+                });
+                (self.weight[px.crop_index as usize], diffuse, spec)
+            })
+            .collect();
+        [0, 1, 2].map(|c| {
+            let mean_at = |s: f32| -> f64 {
+                terms
+                    .iter()
+                    .map(|(w, d, sp)| f64::from(*w) * f64::from(linear_to_srgb(self.exposure * (s * d[c] + sp[c]))))
+                    .sum::<f64>()
+                    / total
+            };
+            let (mut lo, mut hi) = ((1.0f32 / 64.0).ln(), 64.0f32.ln());
+            if mean_at(lo.exp()) >= target[c] {
+                return lo.exp();
+            }
+            if mean_at(hi.exp()) <= target[c] {
+                return hi.exp();
+            }
+            for _ in 0..30 {
+                let mid = 0.5 * (lo + hi);
+                if mean_at(mid.exp()) < target[c] {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            (0.5 * (lo + hi)).exp()
+        })
+    }
+
     /// Turns the last render of `state` in `ws` into the render with albedo scale `scale`
     /// without evaluating the graph again (the diffuse term is linear in the scale).
     pub fn rescale(&self, state: &MaterialState, scale: [f32; 3], ws: &mut Workspace) {

@@ -16,6 +16,7 @@ pub mod error;
 pub mod eval;
 pub mod features;
 pub mod layer;
+pub mod light_solve;
 pub mod lighting;
 pub mod loss;
 pub mod observe;

@@ -149,16 +149,28 @@ fn window(usable: &[u32], w: usize, h: usize, max_pixels: usize) -> Vec<u32> {
         let at = |a: usize, b: usize| integral[b * (bw + 1) + a];
         at(x + ww, y + wh) + at(x, y) - at(x + ww, y) - at(x, y + wh)
     };
-    let mut best = (0u32, 0usize, 0usize);
+    // Among the windows holding nearly the most usable pixels, the one centred nearest their
+    // centroid: the middle of a part, not a corner where it meets the image border.
+    let mut positions = Vec::new();
     for y in (0..=bh - wh).step_by(2) {
         for x in (0..=bw - ww).step_by(2) {
-            let c = count(x, y);
-            if c > best.0 {
-                best = (c, x, y);
-            }
+            positions.push((count(x, y), x, y));
         }
     }
-    let (_, bx, by) = best;
+    let most = positions.iter().map(|p| p.0).max().unwrap_or(0);
+    let (cx, cy) = usable.iter().fold((0.0f64, 0.0f64), |(sx, sy), &i| {
+        (sx + (i as usize % w - x0) as f64, sy + (i as usize / w - y0) as f64)
+    });
+    let (cx, cy) = (cx / usable.len() as f64, cy / usable.len() as f64);
+    let distance = |x: usize, y: usize| {
+        let (dx, dy) = (x as f64 + ww as f64 / 2.0 - cx, y as f64 + wh as f64 / 2.0 - cy);
+        dx * dx + dy * dy
+    };
+    let (_, bx, by) = positions
+        .into_iter()
+        .filter(|p| p.0 as f64 >= 0.9 * most as f64)
+        .min_by(|a, b| distance(a.1, a.2).total_cmp(&distance(b.1, b.2)))
+        .unwrap_or((0, 0, 0));
     let _ = h;
     usable
         .iter()
