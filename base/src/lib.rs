@@ -7,13 +7,15 @@
 //! error, drop, SIGINT and SIGTERM); resource limits ([`limits`]: pixels, texels, samples,
 //! threads, variants and a memory budget, checked before allocating); progress reporting that
 //! any crate can call and only the command line draws ([`progress`]); the one folder walker
-//! ([`walk::files_with_extension`]: follows links, never loops, lists each real file once).
+//! ([`walk::files_with_extension`]: follows links, never loops, lists each real file once);
+//! base64 for `data:` URIs ([`base64`]).
 //!
 //! Must never: depend on another photoscene crate or on anything but `std` and `ctrlc` (the
 //! signal handler of [`output`]); know about graphs, kernels, scenes or images.
 
 #![forbid(unsafe_code)]
 
+pub mod base64;
 pub mod color;
 pub mod limits;
 pub mod output;

@@ -13,6 +13,7 @@ mod fit;
 mod library;
 mod progress;
 mod render;
+mod report;
 
 use std::process::ExitCode;
 
@@ -41,6 +42,8 @@ enum Command {
     Fit(fit::Args),
     /// Evaluate a fit against a dev scene's ground truth, beside the baselines.
     Eval(eval::Args),
+    /// Write report.html: one self-contained page showing a fit output.
+    Report(report::Args),
 }
 
 /// Bad input (a file, a scene, a graph): worth showing to the user as is; exit 1.
@@ -105,6 +108,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render::run(args),
         Command::Fit(args) => fit::run(args).map_err(Error::from),
         Command::Eval(args) => eval::run(args).map_err(Error::from),
+        Command::Report(args) => report::run(args).map_err(Error::from),
     };
     match result {
         Ok(code) => code,

@@ -1,0 +1,181 @@
+//! The report of a hand-made fit folder over the bundled example room (its photo and labels):
+//! every part gets a section, every image is a `data:` URI that decodes, pieces the folder lacks
+//! are said to be "not available", and a folder that is not a fit output is refused.
+
+use std::path::{Path, PathBuf};
+
+use psc_report::{write_report, write_report_with, ReportError, ReportOptions};
+use serde_json::json;
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+}
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("psc-report-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn write(path: &Path, v: &serde_json::Value) {
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    std::fs::write(path, serde_json::to_string_pretty(v).unwrap()).unwrap();
+}
+
+fn png(path: &Path, w: u32, h: u32, f: impl Fn(u32, u32) -> [u8; 3]) {
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    image::RgbImage::from_fn(w, h, |x, y| image::Rgb(f(x, y))).save(path).unwrap();
+}
+
+/// A fit folder naming the example room; `floor` has everything, `walls` has no part file and
+/// no maps, `ghost` is not in the scene.
+fn fit_folder(dir: &Path) {
+    let scene = repo().join("examples/room");
+    write(
+        &dir.join("result.json"),
+        &json!({
+            "format": "photoscene-fit/1", "version": "0.1.0", "command": "psc fit examples/room <&>",
+            "scene": scene.display().to_string(),
+            "lights": {"source": "given", "slots": ["ceiling0"], "radiance_rgb": [[5, 5, 5]], "shares": [1.0]},
+            "parts": [
+                {"name": "floor", "status": "fitted", "graph": "oak_planks", "loss": 0.01, "view": "view0"},
+                {"name": "walls", "status": "fitted", "graph": "painted_wall", "loss": 0.02, "view": "view0"},
+                {"name": "ghost", "status": "unobserved", "graph": "homogeneous", "loss": 0.0, "view": null}
+            ],
+            "renders": ["renders/view0.png", "renders/view0_beside_photo.png"],
+            "timings_s": {"fit parts": 1.5}
+        }),
+    );
+    write(
+        &dir.join("parts/floor.json"),
+        &json!({"name": "floor", "status": "fitted", "graph": "oak_planks",
+                "top": [{"graph": "walnut", "votes": 3.0, "best_loss": 0.1}, {"graph": "oak_planks", "votes": 2.0, "best_loss": 0.05}],
+                "loss": {"total": 0.01}, "loss_curve": [0.5, 0.2, 0.1, 0.01], "iterations": 3,
+                "pixels": {"fitted": 100, "usable": 120}}),
+    );
+    write(
+        &dir.join("materials.json"),
+        &json!({"parts": {
+            "floor": {"graph": "oak_planks", "params": {"rows": 8, "light": [0.6, 0.4, 0.2]}, "albedo_scale": [1, 1, 1]},
+            "walls": {"graph": "painted_wall"},
+            "ghost": {"graph": "homogeneous"}}}),
+    );
+    write(&dir.join("lights.json"), &json!({"lights": [{"name": "ceiling0", "radiance_rgb": [5, 5, 5]}]}));
+    for map in ["albedo", "normal", "roughness"] {
+        png(&dir.join(format!("parts/floor/material_{map}.png")), 300, 300, |x, y| [x as u8, y as u8, 90]);
+    }
+    let photo = image::open(scene.join("views/view0.png")).unwrap().to_rgb8();
+    png(&dir.join("renders/view0.png"), photo.width(), photo.height(), |x, y| {
+        let p = photo.get_pixel(x, y);
+        [p[0].saturating_add(20), p[1], p[2]]
+    });
+}
+
+/// Every `src="…"` of the page.
+fn sources(html: &str) -> Vec<&str> {
+    html.split("src=\"").skip(1).map(|s| &s[..s.find('"').unwrap()]).collect()
+}
+
+#[test]
+fn every_part_has_a_section_and_every_image_is_inline() {
+    let dir = temp("synthetic");
+    fit_folder(&dir);
+    let path = write_report(&dir).unwrap();
+    assert_eq!(path, dir.join("report.html"));
+    let html = std::fs::read_to_string(&path).unwrap();
+    for part in ["floor", "walls", "ghost"] {
+        assert!(html.contains(&format!("<section class=\"part\" id=\"part-{part}\">")), "{part}");
+        assert!(html.contains(&format!("href=\"#part-{part}\"")), "{part} in the contents");
+    }
+    let srcs = sources(&html);
+    // photo, render, difference; floor's two crops and three maps; walls' two crops.
+    assert_eq!(srcs.len(), 3 + 5 + 2, "{srcs:?}");
+    for s in &srcs {
+        let b64 = s.strip_prefix("data:image/png;base64,").expect("a PNG data URI");
+        let bytes = decode_base64(b64);
+        let img = image::load_from_memory(&bytes).expect("decodes");
+        assert!(img.width() > 0 && img.height() > 0);
+    }
+    // Maps are thumbnails, not the 300² originals.
+    assert!(html.contains("albedo (300²)"));
+    // The difference of a render up to 20 levels brighter in red, averaged over the channels.
+    let photo = image::open(repo().join("examples/room/views/view0.png")).unwrap().to_rgb8();
+    let raised: u64 = photo.pixels().map(|p| (p[0].saturating_add(20) - p[0]) as u64).sum();
+    let mean = raised as f64 / (3.0 * 255.0 * (photo.width() * photo.height()) as f64);
+    assert!((0.01..0.1).contains(&mean), "{mean}");
+    let said = format!("mean {mean:.5} of full scale");
+    assert!(html.contains(&said), "{said} not in {}", &html[html.find("mean ").unwrap()..][..60]);
+    // What is missing is said, and text from files is escaped.
+    assert!(html.contains("Selection: not available"));
+    assert!(html.contains("Baked albedo: not available"));
+    assert!(html.contains("Crop: not available (the part was not fitted in any view)"));
+    assert!(html.contains("Evaluation (run `psc eval` on a scene with truth/): not available"));
+    assert!(html.contains("psc fit examples/room &lt;&amp;&gt;"));
+    // The chosen graph is marked among the alternatives, shares and fitted colours shown.
+    assert!(html.contains("oak_planks ✔"));
+    assert!(html.contains("<th>share</th>"));
+    assert!(html.contains("<code>light</code>"));
+    // Nothing but data: URIs and anchors is referenced, and a CSP forbids anything else.
+    assert!(html.contains("default-src 'none'; img-src data:"));
+    for attr in ["href=\"", "url("] {
+        for rest in html.split(attr).skip(1) {
+            assert!(rest.starts_with('#') || rest.starts_with("data:"), "{attr}{}", &rest[..40.min(rest.len())]);
+        }
+    }
+    assert!(!html.contains("http://") && !html.contains("https://"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_missing_scene_leaves_the_photos_out_and_says_why() {
+    let dir = temp("noscene");
+    fit_folder(&dir);
+    let elsewhere = dir.join("no-such-scene");
+    let html =
+        std::fs::read_to_string(write_report_with(&dir, &ReportOptions { scene: Some(elsewhere.clone()) }).unwrap())
+            .unwrap();
+    assert!(html.contains("Photos and part labels: not available"));
+    assert!(html.contains("Photo: not available"));
+    // The render is still there; no crop can be made.
+    assert_eq!(sources(&html).len(), 1 + 3);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_folder_that_is_not_a_fit_output_is_refused() {
+    let dir = temp("notfit");
+    match write_report(&dir) {
+        Err(ReportError::NotAFitOutput { reason, .. }) => assert!(reason.contains("result.json"), "{reason}"),
+        other => panic!("{other:?}"),
+    }
+    write(&dir.join("result.json"), &json!({"format": "photoscene-eval/1"}));
+    let e = write_report(&dir).unwrap_err().to_string();
+    assert!(e.contains("not a `psc fit` output folder") && e.contains("photoscene-eval/1"), "{e}");
+    std::fs::write(dir.join("result.json"), "{ not json").unwrap();
+    assert!(matches!(write_report(&dir), Err(ReportError::Input { .. })));
+    assert!(!dir.join("report.html").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A base64 decoder written separately from the encoder, so a wrong encoder cannot pass.
+fn decode_base64(text: &str) -> Vec<u8> {
+    let value = |c: u8| match c {
+        b'A'..=b'Z' => c - b'A',
+        b'a'..=b'z' => c - b'a' + 26,
+        b'0'..=b'9' => c - b'0' + 52,
+        b'+' => 62,
+        b'/' => 63,
+        _ => panic!("not base64: {c}"),
+    };
+    let bytes: Vec<u8> = text.bytes().filter(|&c| c != b'=').collect();
+    let mut out = Vec::new();
+    for chunk in bytes.chunks(4) {
+        let mut n = 0u32;
+        for (i, &c) in chunk.iter().enumerate() {
+            n |= (value(c) as u32) << (18 - 6 * i);
+        }
+        out.extend_from_slice(&n.to_be_bytes()[1..chunk.len()]);
+    }
+    out
+}
