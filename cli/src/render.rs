@@ -1,14 +1,21 @@
 //! `psc render`: path-traced images, G-buffers, per-pixel light grids and per-light renders of a
-//! scene folder. Parses the options into a `psc_runtime::view::ViewRequest`, opens the view
-//! there, and renders through `psc-render`.
+//! scene folder or of a fit output folder (the scene its `result.json` names, with the fitted
+//! `materials.json` and `lights.json`). Parses the options into a
+//! `psc_runtime::view::ViewRequest`, opens the view there, and renders through `psc-render`.
 //!
 //! Light radiances: `--lights lights.json`, or `--lights truth` (a dev scene's true radiances,
-//! for validation), else every light at unit radiance (said on stderr).
+//! for validation), else a fit output's `lights.json`, else every light at unit radiance (said
+//! on stderr). Materials: `--assign` overrides the parts it names (over a fit's materials too);
+//! `--set part.param=value` edits the assignment (`psc_runtime::edit`).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use psc_render::{compute_light_grid_with_progress, image_io, LightGridOptions, LightsSource, RenderOptions, Renderer};
+use psc_runtime::assign::Assignment;
+use psc_runtime::edit::{apply_edits, Edit};
+use psc_runtime::fitted::FitOutput;
+use psc_runtime::library::{default_library_root, Library};
 use psc_runtime::view::{open_view, CameraChoice, GeometryChoice, MaterialsChoice, OpenedView, ViewRequest};
 
 use psc_base::output::Replace;
@@ -34,7 +41,8 @@ pub enum Geometry {
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scene folder (with scene.json).
+    /// Scene folder (with scene.json), or a `psc fit` output folder (with result.json): its
+    /// scene rendered with the fitted materials and lights.
     scene: PathBuf,
     /// View whose camera and resolution to use (default: the first view).
     #[arg(long, conflicts_with = "camera")]
@@ -72,8 +80,14 @@ pub struct Args {
     /// transforms) to parts; parts it does not name keep the --materials choice.
     #[arg(long)]
     assign: Option<PathBuf>,
-    /// Graph library folder for --assign (default: this checkout's graphs/).
-    #[arg(long, requires = "assign")]
+    /// Override one fitted (or assigned) value: part.param=value, values comma-separated
+    /// (colours linear r,g,b); also part.albedo_scale=r,g,b, part.roughness_scale=x,
+    /// part.uv.rotation=deg, part.uv.scale=s, part.uv.log_scale=k (scale 1.5^k), part.uv.offset=u,v.
+    /// Repeatable; needs a fit output or --assign.
+    #[arg(long = "set")]
+    edits: Vec<String>,
+    /// Graph library folder for --assign, a fit output and --set (default: this checkout's graphs/).
+    #[arg(long)]
     lib: Option<PathBuf>,
     #[arg(long, value_enum, default_value_t = Geometry::Model)]
     geometry: Geometry,
@@ -105,10 +119,10 @@ pub struct Args {
     force: bool,
 }
 
-/// The options as a request for the runtime.
-fn view_request(args: &Args) -> ViewRequest {
+/// The options as a request for the runtime, for a scene folder or a fit output (`fit`).
+fn view_request(args: &Args, fit: Option<&FitOutput>) -> ViewRequest {
     ViewRequest {
-        scene: args.scene.clone(),
+        scene: fit.map_or_else(|| args.scene.clone(), |f| f.scene.clone()),
         geometry: match args.geometry {
             Geometry::Model => GeometryChoice::Model,
             Geometry::Truth => GeometryChoice::Truth,
@@ -123,10 +137,39 @@ fn view_request(args: &Args) -> ViewRequest {
             Materials::Mtl => MaterialsChoice::Mtl,
             Materials::Truth => MaterialsChoice::Truth,
         },
+        assignment: None,
         assign: args.assign.clone(),
         library: args.lib.clone(),
-        lights: LightsSource::from_arg(args.lights.as_deref()),
+        lights: match (&args.lights, fit) {
+            (None, Some(f)) => LightsSource::File(f.lights.clone()),
+            (given, _) => LightsSource::from_arg(given.as_deref()),
+        },
     }
+}
+
+/// The materials of a fit output and `--assign`, edited by `--set`: the request's in-memory
+/// assignment (and the library that checked the edits, for opening the view with).
+fn materials(args: &Args, fit: Option<&FitOutput>, req: &mut ViewRequest) -> Result<Option<Library>, Error> {
+    let fitted = match fit {
+        Some(f) => Some(f.assignment()?),
+        None => None,
+    };
+    // Bad values are bad input (exit 1), like a bad value in an assignment file.
+    let edits = args.edits.iter().map(|e| Edit::parse(e)).collect::<Result<Vec<_>, _>>()?;
+    if edits.is_empty() {
+        req.assignment = fitted;
+        return Ok(None);
+    }
+    if fitted.is_none() && args.assign.is_none() {
+        return Err(Usage("--set: edits a fit output's materials or an --assign file; give one".into()).into());
+    }
+    let mut merged = fitted.unwrap_or_default();
+    if let Some(path) = req.assign.take() {
+        merged.parts.extend(Assignment::read(&path)?.parts);
+    }
+    let library = Library::load(&args.lib.clone().unwrap_or_else(default_library_root))?;
+    req.assignment = Some(apply_edits(&merged, &edits, &library)?);
+    Ok(Some(library))
 }
 
 /// What is written where, decided from the options before any work is done.
@@ -166,9 +209,12 @@ fn replace(args: &Args) -> Replace {
 
 pub fn run(args: Args) -> Result<ExitCode, Error> {
     let output = output(&args)?;
+    let fit = if FitOutput::is_fit_output(&args.scene) { Some(FitOutput::open(&args.scene)?) } else { None };
+    let mut request = view_request(&args, fit.as_ref());
+    let library = materials(&args, fit.as_ref(), &mut request)?;
     let drawer = Drawer::new(args.quiet || args.bench);
     let OpenedView { scene, camera, width, height, materials, radiances, warnings } =
-        open_view(&view_request(&args), None, &drawer)?;
+        open_view(&request, library.as_ref(), &drawer)?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }

@@ -6,7 +6,8 @@
 //!   camera file (its `width`/`height`, else the first view's size, else 640×480); an explicit
 //!   size overrides either.
 //! - Materials: the MTL's, or the dev scenes' true materials when asked for by name; then an
-//!   assignment file binds library graphs to the parts it names.
+//!   assignment already in memory (a fit's materials, edited) and an assignment file bind
+//!   library graphs to the parts they name, in that order.
 //! - Light radiances ([`LightsSource`]): a lights file, or the true radiances when asked for by
 //!   name, or by default every light and the environment at unit radiance (with a warning
 //!   saying so).
@@ -67,6 +68,9 @@ pub struct ViewRequest {
     /// Width × height, overriding the view's or the camera file's.
     pub size: Option<(usize, usize)>,
     pub materials: MaterialsChoice,
+    /// An assignment in memory (a fit's `materials.json` with `--set` edits), bound before
+    /// `assign`.
+    pub assignment: Option<Assignment>,
     /// An assignment file binding library graphs to parts (see [`crate::assign`]).
     pub assign: Option<PathBuf>,
     /// The library for `assign` when the caller passes none (default: the shipped graphs/).
@@ -96,6 +100,7 @@ impl Default for ViewRequest {
             camera: CameraChoice::FirstView,
             size: None,
             materials: MaterialsChoice::Mtl,
+            assignment: None,
             assign: None,
             library: None,
             lights: LightsSource::Default,
@@ -197,9 +202,12 @@ pub fn open_view(
         MaterialsChoice::Mtl => scene.mtl_materials(&mut warnings),
         MaterialsChoice::Truth => truth::truth_materials(&scene, &mut warnings)?,
     };
-    if let Some(path) = &req.assign {
+    if req.assign.is_some() || req.assignment.is_some() {
         // Read before compiling the library: a broken file fails fast.
-        let assignment = Assignment::read(path).map_err(OpenError::Assign)?;
+        let from_file = match &req.assign {
+            Some(path) => Some((Assignment::read(path).map_err(OpenError::Assign)?, path)),
+            None => None,
+        };
         let loaded;
         let library = match library {
             Some(l) => l,
@@ -209,9 +217,14 @@ pub fn open_view(
                 &loaded
             }
         };
-        assignment
-            .bind(library, &scene.mesh.part_names, &mut materials)
-            .map_err(|e| OpenError::Assign(e.in_file(path)))?;
+        if let Some(assignment) = &req.assignment {
+            assignment.bind(library, &scene.mesh.part_names, &mut materials).map_err(OpenError::Assign)?;
+        }
+        if let Some((assignment, path)) = from_file {
+            assignment
+                .bind(library, &scene.mesh.part_names, &mut materials)
+                .map_err(|e| OpenError::Assign(e.in_file(path)))?;
+        }
     }
 
     let radiances = LightRadiances::resolve(&scene, &req.lights, &mut warnings)?;
