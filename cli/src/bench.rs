@@ -68,12 +68,14 @@ impl BenchRow {
     }
 }
 
-pub fn run(args: Args) -> Result<ExitCode, Failure> {
+pub fn run(args: Args) -> Result<ExitCode, crate::Error> {
     if args.size == 0 || args.runs == 0 {
-        return Err(Failure("--size and --runs must be at least 1".into()));
+        return Err(Failure("--size and --runs must be at least 1".into()).into());
     }
+    // Interpreter and JIT both hold size² texels of every channel: the bake's limit applies.
+    crate::checks::bake_size("--size", args.size)?;
     if !args.paths.is_empty() {
-        return bench_graphs(&args);
+        return Ok(bench_graphs(&args)?);
     }
     let forward = random::material_like(args.synthetic, args.seed);
     let wrt: Vec<u32> = (0..forward.num_params as u32).collect();

@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use psc_base::progress::Progress as _;
+use psc_base::output::{Replace, StagedDir};
 use psc_fit::output::{self, OutputOptions};
 use psc_fit::pipeline::{fit_scene, FitOptions, Progress};
 use psc_render::scene::{LightRadiances, Scene};
@@ -50,8 +51,9 @@ pub struct Args {
     /// Most photo pixels a part is fitted on (larger parts: the window with the most usable pixels).
     #[arg(long, default_value_t = 4096)]
     fit_pixels: usize,
-    /// Rounds of light re-estimation and albedo/roughness re-fit after the first fit.
-    #[arg(long, default_value_t = 1)]
+    /// At most this many rounds of global light solve + albedo/roughness re-fit after the
+    /// first fit (they stop early once no light moves by more than 2%).
+    #[arg(long, default_value_t = 3)]
     refit_rounds: usize,
     /// Size of the baked maps per part (0: none).
     #[arg(long, default_value_t = 1024)]
@@ -116,13 +118,22 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         Some(p) => {
             let mut warnings = Vec::new();
             let r = LightRadiances::from_file(p, &scene, &mut warnings)?;
-            for w in &warnings {
-                eprintln!("warning: {w}");
+            // Fitting "under known lights" with some unknown would fit the albedos to a
+            // guess: what `psc render` only warns about is an error here.
+            if !warnings.is_empty() {
+                return Err(Failure(format!(
+                    "--lights must give every light of the scene and no other: {}",
+                    warnings.join("; ")
+                )));
             }
             Some(r)
         }
         None => None,
     };
+    // Refuse an existing --out before hours of work, not after; the folder is built aside and
+    // renamed into place at the end, so an error or Ctrl-C leaves nothing half-written.
+    let replace = if args.force { Replace::Yes } else { Replace::No };
+    let staged = StagedDir::new(&args.out, replace).map_err(|e| Failure(e.to_string()))?;
     let mut options = FitOptions { seed: args.seed, ..Default::default() };
     options.forced = args.graphs.iter().cloned().collect::<BTreeMap<_, _>>();
     options.select.exemplars = args.exemplars;
@@ -140,7 +151,8 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
         command: std::env::args().collect::<Vec<_>>().join(" "),
     };
     progress.stage("write results", 1);
-    output::write(&args.out, &scene, &library, &result, &output_options)?;
+    output::write_into(staged.path(), &scene, &library, &result, &output_options)?;
+    staged.commit().map_err(|e| Failure(e.to_string()))?;
     progress.done();
     if !args.quiet {
         eprintln!(

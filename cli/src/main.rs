@@ -102,7 +102,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result: Result<ExitCode, Error> = match cli.command {
         Command::Compile(args) => compile::run(args).map_err(Error::from),
-        Command::Bench(args) => bench::run(args).map_err(Error::from),
+        Command::Bench(args) => bench::run(args),
         Command::Bake(args) => bake::run(args),
         Command::Library(args) => library::run(args),
         Command::Render(args) => render::run(args),

@@ -24,6 +24,7 @@ pub mod optim;
 pub mod output;
 pub mod part_fit;
 pub mod pipeline;
+pub mod refit;
 pub mod search;
 pub mod select;
 pub mod shading;

@@ -7,6 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
+use psc_base::output::{Replace, StagedDir};
 use psc_render::scene::Scene;
 use psc_render::{image_io, RenderOptions, Renderer};
 use psc_runtime::bake::{bake, write_maps};
@@ -97,7 +98,8 @@ pub fn file_stem(name: &str) -> String {
     name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect()
 }
 
-/// Writes the whole output folder `out` (see the module docs).
+/// Writes the whole output folder `out` (see the module docs): built in a staging folder and
+/// renamed into place, so that an error or an interrupt leaves `out` as it was.
 pub fn write(
     out: &Path,
     scene: &Scene,
@@ -105,29 +107,15 @@ pub fn write(
     result: &FitResult,
     options: &OutputOptions,
 ) -> Result<(), FitError> {
-    if out.exists() && !options.force {
-        return Err(FitError::Input(format!("{}: exists (give --force to replace it)", out.display())));
-    }
-    let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(|e| out_err(parent, e))?;
-    let name = out.file_name().and_then(|n| n.to_str()).unwrap_or("fit");
-    let staging = parent.join(format!(".{name}.partial-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&staging);
-    let written = write_into(&staging, scene, library, result, options);
-    if let Err(e) = written {
-        let _ = std::fs::remove_dir_all(&staging);
-        return Err(e);
-    }
-    if out.exists() {
-        std::fs::remove_dir_all(out).map_err(|e| out_err(out, e))?;
-    }
-    std::fs::rename(&staging, out).map_err(|e| {
-        let _ = std::fs::remove_dir_all(&staging);
-        out_err(out, e)
-    })
+    let replace = if options.force { Replace::Yes } else { Replace::No };
+    let staged = StagedDir::new(out, replace).map_err(|e| FitError::Output(e.to_string()))?;
+    write_into(staged.path(), scene, library, result, options)?;
+    staged.commit().map_err(|e| FitError::Output(e.to_string()))?;
+    Ok(())
 }
 
-fn write_into(
+/// Writes the output files into `dir`, an existing (staging) folder.
+pub fn write_into(
     dir: &Path,
     scene: &Scene,
     library: &Library,
@@ -160,7 +148,7 @@ fn write_into(
             "version": env!("CARGO_PKG_VERSION"),
             "command": options.command,
             "scene": scene.root.display().to_string(),
-            "lights": { "source": result.light_source, "slots": result.slot_names, "radiance_rgb": result.radiance },
+            "lights": { "source": result.light_source, "slots": result.slot_names, "radiance_rgb": result.radiance, "solve_rounds": result.light_rounds },
             "parts": result.parts.iter().map(|p| json!({"name": p.name, "status": p.status, "graph": p.graph,
                 "loss": p.loss.total, "view": p.view})).collect::<Vec<_>>(),
             "renders": renders.iter().map(|p| p.strip_prefix(dir).unwrap_or(p).display().to_string()).collect::<Vec<_>>(),

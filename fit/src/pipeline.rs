@@ -15,6 +15,8 @@ use serde::Serialize;
 use crate::align::{align_view, AlignedPart, Dropped, Warp};
 use crate::error::FitError;
 use crate::features::{FeatureConfig, Scratch};
+use crate::light_solve::LightSolve;
+use crate::refit::{self, RoundInputs};
 use crate::layer::{MaterialState, PartView, Sampling, Workspace};
 use crate::lighting::{self, GridSettings, ShadingGrid};
 use crate::loss::{LossValue, LossWeights, PartLoss};
@@ -62,7 +64,7 @@ impl Default for FitOptions {
             min_pixels: 500,
             loss: LossWeights::default(),
             features: FeatureConfig::default(),
-            refit_rounds: 1,
+            refit_rounds: 3,
             refit_iterations: 150,
         }
     }
@@ -154,6 +156,8 @@ pub struct FitResult {
     pub radiance: Vec<[f32; 3]>,
     /// How the radiances were obtained.
     pub light_source: String,
+    /// The global light solves of the re-fit rounds, in order (none with `--lights`).
+    pub light_rounds: Vec<LightRound>,
     /// (stage, seconds) in order.
     pub timings: Vec<(String, f64)>,
 }
@@ -192,9 +196,30 @@ pub fn binding(
     })
 }
 
+/// One round's light solve and how much it moved the radiances.
+#[derive(Clone, Debug, Serialize)]
+pub struct LightRound {
+    pub solve: LightSolve,
+    /// Largest relative change of a slot's radiance (luminance) against the previous round.
+    pub change: f32,
+}
+
+/// Rounds stop once no light's radiance moves by more than this fraction.
+const LIGHT_CONVERGED: f32 = 0.02;
+
+fn relative_change(old: &[[f32; 3]], new: &[[f32; 3]]) -> f32 {
+    old.iter()
+        .zip(new)
+        .map(|(a, b)| {
+            let (la, lb) = (psc_base::color::luminance(*a), psc_base::color::luminance(*b));
+            (lb - la).abs() / la.max(lb).max(1e-6)
+        })
+        .fold(0.0, f32::max)
+}
+
 /// The documented default for parts no view shows.
 const UNOBSERVED_ALBEDO: [f32; 3] = [0.5; 3];
-const DEFAULT_ROUGHNESS: f32 = 0.5;
+pub(crate) const DEFAULT_ROUGHNESS: f32 = 0.5;
 const HOMOGENEOUS: &str = "homogeneous";
 
 /// Fits every part of `scene`. `radiances`: known light radiances (`--lights`), else they are
@@ -288,34 +313,90 @@ pub fn fit_scene(
     }
     lap("fit parts", &mut timings);
 
-    let mut result = FitResult { parts, slot_names: renderer.slot_names().to_vec(), radiance, light_source, timings };
+    let mut result = FitResult {
+        parts,
+        slot_names: renderer.slot_names().to_vec(),
+        radiance,
+        light_source,
+        light_rounds: Vec::new(),
+        timings,
+    };
+    let mut shading = shading;
+    {
+        let inputs = RoundInputs {
+            library,
+            homogeneous: &homogeneous,
+            renderer: &renderer,
+            views: &views,
+            aligned: &aligned,
+            shading: &shading,
+            options,
+        };
+        for part in result.parts.iter_mut() {
+            refit::match_whole_part(&inputs, part)?;
+        }
+    }
+    lap("match part means", &mut result.timings);
     for round in 0..options.refit_rounds {
         renderer.set_materials(result.bindings(library)?)?;
         if radiances.is_none() {
-            progress.stage("re-estimate lights", views.len() as u64);
-            let renders = lighting::unit_renders(&renderer, &views, options.seed ^ 0x5eed_0001)?;
-            let (common, pixels) = lighting::common_radiance(&views, &renders)?;
+            progress.stage("solve lights", 1);
+            let solve = refit::solve_lights(&renderer, &views, options.seed ^ 0x5eed_0001 ^ round as u64)?;
+            progress.advance(1);
+            if solve.radiance.iter().all(|r| r.iter().all(|&c| c <= 0.0)) {
+                progress.note(&format!("round {}: the light solve found no light; keeping the previous radiances", round + 1));
+                break;
+            }
+            let change = relative_change(&result.radiance, &solve.radiance);
             progress.note(&format!(
-                "round {}: lights under the fitted materials: one common radiance ({:.3}, {:.3}, {:.3}) from {pixels} pixels",
+                "round {}: lights solved from {} pixels (relative rms {:.3}, {:.0}% outliers): {}; change {:.1}%",
                 round + 1,
-                common[0],
-                common[1],
-                common[2]
+                solve.pixels,
+                solve.relative_rms[1],
+                solve.outliers * 100.0,
+                result
+                    .slot_names
+                    .iter()
+                    .zip(&solve.radiance)
+                    .zip(&solve.share)
+                    .map(|((n, r), s)| format!("{n} ({:.1}, {:.1}, {:.1}) carries {:.0}%", r[0], r[1], r[2], s * 100.0))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                change * 100.0
             ));
-            result.radiance = vec![common; n_slots];
-            result.light_source =
-                format!("estimated from the photos under the fitted materials (one common radiance, {pixels} pixels)");
+            result.radiance = solve.radiance.clone();
+            result.light_source = format!(
+                "solved per light under the fitted materials (NNLS, robust), round {} of at most {}",
+                round + 1,
+                options.refit_rounds
+            );
+            result.light_rounds.push(LightRound { solve, change });
         }
         progress.stage("light grids", views.len() as u64);
         let grids = lighting::view_grids(&renderer, &views, options.grid, options.seed ^ 0x5eed_0002)?;
-        let shading: Vec<ShadingGrid> =
+        shading =
             grids.iter().zip(&views).map(|(g, o)| ShadingGrid::new(g, &result.radiance, o.camera.position)).collect();
         progress.stage("re-fit albedo scale and roughness", n_parts as u64);
+        let inputs = RoundInputs {
+            library,
+            homogeneous: &homogeneous,
+            renderer: &renderer,
+            views: &views,
+            aligned: &aligned,
+            shading: &shading,
+            options,
+        };
         for part in result.parts.iter_mut() {
-            refit_appearance(library, &homogeneous, &renderer, &views, &aligned, &shading, part, options)?;
+            refit::refit_appearance(&inputs, part)?;
+            refit::match_whole_part(&inputs, part)?;
             progress.advance(1);
         }
         lap(&format!("re-fit round {}", round + 1), &mut result.timings);
+        let converged = result.light_rounds.last().is_some_and(|r| r.change < LIGHT_CONVERGED);
+        if converged {
+            progress.note(&format!("lights converged after {} rounds", round + 1));
+            break;
+        }
     }
     Ok(result)
 }
@@ -475,61 +556,8 @@ fn fit_one_part(
     Ok(result)
 }
 
-/// Re-fits a part's albedo scale and roughness under new lighting (graph, parameters and UV
-/// transform frozen), as PhotoScene's re-fit; homogeneous parts get their colour anew.
-#[allow(clippy::too_many_arguments)]
-fn refit_appearance(
-    library: &Library,
-    homogeneous: &psc_runtime::library::Material,
-    renderer: &Renderer,
-    views: &[ViewObservation],
-    aligned: &[Vec<AlignedPart>],
-    shading: &[ShadingGrid],
-    part: &mut PartResult,
-    options: &FitOptions,
-) -> Result<(), FitError> {
-    let Some(v) = part.view_index else { return Ok(()) };
-    let Some(a) = aligned[v].iter().find(|a| a.part as usize == part_index(renderer, &part.name)) else {
-        return Ok(());
-    };
-    let obs = &views[v];
-    let mut ws = Workspace::default();
-    if part.status == PartStatus::Homogeneous {
-        if let Some(view) = part_view(obs, a, renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, 1.0)
-        {
-            let colour = flat_colour(homogeneous, &view, &mut ws)?;
-            part.state = flat_state(homogeneous, colour, part.state.roughness);
-        }
-        return Ok(());
-    }
-    let Some(fit_view) = part_view(obs, a, renderer.geometry(), &obs.camera, &shading[v], options.fit_pixels, 1.0)
-    else {
-        return Ok(());
-    };
-    let material = library.get(&part.graph).expect("fitted graphs come from the library");
-    let mut scratch = Scratch::default();
-    let fit_loss = PartLoss::new(&fit_view, options.loss, &options.features, &mut scratch)?;
-    let problem =
-        Problem { material, fit_view: &fit_view, fit_loss: &fit_loss, search_view: &fit_view, search_loss: &fit_loss };
-    let settings =
-        FitSettings { max_iterations: options.refit_iterations, starts: 1, start_iterations: 0, ..options.fit };
-    let fit = fit_part(&problem, std::slice::from_ref(&part.state), &settings, Free::APPEARANCE)?;
-    part.state = fit.state;
-    part.loss = fit.loss;
-    part.history.extend(fit.history);
-    part.iterations += fit.iterations;
-    fit_view.render(material, &part.state, options.fit.sampling, &mut ws)?;
-    let map_mean = ws.channel_mean(psc_compiler::Channel::Roughness);
-    part.roughness_scale = if map_mean > 1e-4 { (part.state.roughness / map_mean).clamp(0.0, 50.0) } else { 1.0 };
-    Ok(())
-}
-
-fn part_index(renderer: &Renderer, name: &str) -> usize {
-    renderer.part_names().iter().position(|p| p == name).expect("parts come from the scene")
-}
-
 /// The homogeneous graph at linear colour `albedo` (values above 1 stay in the albedo scale).
-fn flat_state(homogeneous: &psc_runtime::library::Material, albedo: [f32; 3], roughness: f32) -> MaterialState {
+pub(crate) fn flat_state(homogeneous: &psc_runtime::library::Material, albedo: [f32; 3], roughness: f32) -> MaterialState {
     let info = &homogeneous.graph.info;
     let mut params = info.default_params();
     let mut albedo_scale = [1.0f32; 3];
@@ -550,7 +578,7 @@ fn flat_state(homogeneous: &psc_runtime::library::Material, albedo: [f32; 3], ro
 
 /// The shading-normalised median colour of a part: the albedo scale that colour-matches a
 /// white homogeneous material to the photo.
-fn flat_colour(
+pub(crate) fn flat_colour(
     homogeneous: &psc_runtime::library::Material,
     view: &PartView,
     ws: &mut Workspace,

@@ -51,6 +51,7 @@ fn small_options() -> FitOptions {
     o.fit_pixels = 1024;
     o.search_pixels = 256;
     o.refit_iterations = 8;
+    o.refit_rounds = 1;
     o
 }
 

@@ -355,7 +355,13 @@ fn lights(fit: &FitFolder) -> String {
         Err(e) => return s + &missing("lights.json", e),
     };
     let list = lights.get("lights").and_then(Value::as_array).cloned().unwrap_or_default();
-    let shares = fit.result.pointer("/lights/shares").and_then(Value::as_array);
+    // Shares of the light reaching the solved pixels: given directly, or the last global solve's.
+    let rounds = fit.result.pointer("/lights/solve_rounds").and_then(Value::as_array);
+    let shares = fit
+        .result
+        .pointer("/lights/shares")
+        .and_then(Value::as_array)
+        .or_else(|| rounds?.last()?.pointer("/solve/share")?.as_array());
     let truth = fit.eval.as_ref().ok().and_then(|e| e.pointer("/lights/true")).and_then(Value::as_array);
     let mut header = vec!["light", "radiance (linear RGB)"];
     if shares.is_some() {
@@ -395,6 +401,24 @@ fn lights(fit: &FitFolder) -> String {
     }
     if let Some(env) = lights.get("environment_scale") {
         let _ = write!(s, "<p>Environment scale: {}.</p>", value(env));
+    }
+    if let Some(rounds) = rounds.filter(|r| !r.is_empty()) {
+        let rows: Vec<Vec<String>> = rounds
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let at = |p: &str| r.pointer(p).map(value).unwrap_or_default();
+                vec![
+                    format!("{}", i + 1),
+                    at("/change"),
+                    at("/solve/pixels"),
+                    at("/solve/relative_rms"),
+                    at("/solve/outliers"),
+                ]
+            })
+            .collect();
+        s.push_str("<p>Global light solves of the re-fit rounds (largest relative change of a light against the round before; the fit's residual).</p>");
+        s.push_str(&table(&["round", "change", "pixels", "relative RMS (r, g, b)", "outlier fraction"], &rows));
     }
     s
 }

@@ -37,7 +37,9 @@ fn fit_folder(dir: &Path) {
         &json!({
             "format": "photoscene-fit/1", "version": "0.1.0", "command": "psc fit examples/room <&>",
             "scene": scene.display().to_string(),
-            "lights": {"source": "given", "slots": ["ceiling0"], "radiance_rgb": [[5, 5, 5]], "shares": [1.0]},
+            "lights": {"source": "solved", "slots": ["ceiling0"], "radiance_rgb": [[5, 5, 5]],
+                       "solve_rounds": [{"change": 0.5, "solve": {"radiance": [[4, 4, 4]], "share": [0.75], "pixels": 900,
+                                                                   "relative_rms": [0.1, 0.1, 0.1], "outliers": 0.05}}]},
             "parts": [
                 {"name": "floor", "status": "fitted", "graph": "oak_planks", "loss": 0.01, "view": "view0"},
                 {"name": "walls", "status": "fitted", "graph": "painted_wall", "loss": 0.02, "view": "view0"},
@@ -114,7 +116,8 @@ fn every_part_has_a_section_and_every_image_is_inline() {
     assert!(html.contains("psc fit examples/room &lt;&amp;&gt;"));
     // The chosen graph is marked among the alternatives, shares and fitted colours shown.
     assert!(html.contains("oak_planks ✔"));
-    assert!(html.contains("<th>share</th>"));
+    assert!(html.contains("<th>share</th>") && html.contains("<td>0.7500</td>"), "the last solve's share");
+    assert!(html.contains("<td>900</td>"), "the solve rounds' table");
     assert!(html.contains("<code>light</code>"));
     // Nothing but data: URIs and anchors is referenced, and a CSP forbids anything else.
     assert!(html.contains("default-src 'none'; img-src data:"));

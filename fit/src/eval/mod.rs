@@ -218,11 +218,56 @@ pub struct Evaluation {
     pub true_lights: Vec<[f32; 3]>,
     pub images: Vec<ImageResult>,
     pub rows: Vec<Row>,
+    /// Per part with a true texture kind: the graph the fit chose and whether its family is
+    /// the one that kind expects.
+    pub graph_choice: Vec<GraphChoice>,
     pub warnings: Vec<String>,
     /// (stage, seconds) in order.
     pub timings: Vec<(String, f64)>,
     pub renders: usize,
     pub wall_seconds: f64,
+}
+
+/// A fitted part's graph against the kind of its true texture.
+#[derive(Clone, Debug)]
+pub struct GraphChoice {
+    pub part: String,
+    pub kind: String,
+    pub graph: String,
+    /// The graph's declared category (`category` in its `.psg`).
+    pub category: String,
+    /// `Some(matches)` for the kinds with an expected family, None for the others ("plain",
+    /// "photo", "model_texture": any family may be right).
+    pub matches: Option<bool>,
+}
+
+/// The graph categories a true texture kind is expected to be fitted with.
+pub fn expected_categories(kind: &str) -> Option<&'static [&'static str]> {
+    match kind {
+        "planks" => Some(&["wood"]),
+        "stripes" => Some(&["fabric", "carpet", "wallpaper"]),
+        "plaster" => Some(&["concrete"]),
+        "tiles" => Some(&["tiles"]),
+        "brick" => Some(&["brick"]),
+        "marble" => Some(&["stone"]),
+        _ => None,
+    }
+}
+
+fn graph_choices(materials: &Path, kinds: &BTreeMap<String, String>, library: &Library) -> Result<Vec<GraphChoice>, EvalError> {
+    let text = std::fs::read_to_string(materials).map_err(|e| EvalError(format!("{}: {e}", materials.display())))?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| EvalError(format!("{}:{}:{}: {e}", materials.display(), e.line(), e.column())))?;
+    let mut out = Vec::new();
+    for (part, kind) in kinds {
+        let Some(graph) = v.pointer(&format!("/parts/{}/graph", part.replace('~', "~0").replace('/', "~1"))).and_then(|g| g.as_str()) else {
+            continue;
+        };
+        let category = library.get(graph).map_or_else(|| "?".to_string(), |m| m.graph.info.category.clone());
+        let matches = expected_categories(kind).map(|cats| cats.contains(&category.as_str()));
+        out.push(GraphChoice { part: part.clone(), kind: kind.clone(), graph: graph.to_string(), category, matches });
+    }
+    Ok(out)
 }
 
 /// Evaluate the fit in `fit` against the ground truth of `scene_dir`. Writes nothing; see
@@ -271,6 +316,7 @@ pub fn evaluate(
     let fitted_radiances = Radiances { lights: fitted_lights.clone(), environment: fitted_env };
     let assigned_parts = assigned_part_names(&fit.materials)?;
     let fitted_model = model.assigned_materials(&fit.materials, library)?;
+    let graph_choice = graph_choices(&fit.materials, &truth.part_kinds, library)?;
     for p in model.part_names() {
         if !assigned_parts.contains(p) {
             warnings
@@ -377,6 +423,7 @@ pub fn evaluate(
         fitted_lights,
         true_lights: truth.lights.lights.clone(),
         images,
+        graph_choice,
         rows,
         warnings,
         timings,

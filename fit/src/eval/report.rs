@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use serde_json::{json, Value};
 
 use super::backend;
-use super::{EvalError, Evaluation, Geometry, Method, Row, ViewKind};
+use super::{EvalError, Evaluation, Geometry, GraphChoice, Method, Row, ViewKind};
 
 /// The ratio rows of the table: numerator / denominator per metric.
 const RATIOS: [(Method, Method); 4] = [
@@ -114,6 +114,43 @@ impl Evaluation {
                 "parts no input view shows (baselines use the median of all labelled pixels): {}\n",
                 self.unseen_parts.join(", ")
             ));
+        }
+        if self.fitted_lights.len() > 1 && self.fitted_lights.len() == self.true_lights.len() {
+            // Albedo and light trade a global scale: compare each light's fitted/true ratio
+            // with their geometric mean (luminance).
+            let ratios: Vec<f64> = self
+                .fitted_lights
+                .iter()
+                .zip(&self.true_lights)
+                .map(|(f, t)| f64::from(psc_base::color::luminance(*f)) / f64::from(psc_base::color::luminance(*t)).max(1e-12))
+                .collect();
+            let scale = (ratios.iter().map(|r| r.max(1e-12).ln()).sum::<f64>() / ratios.len() as f64).exp();
+            let rel: Vec<String> = ratios.iter().map(|r| format!("{:.3}", r / scale)).collect();
+            let worst = ratios.iter().map(|r| (r / scale - 1.0).abs()).fold(0.0, f64::max);
+            s.push_str(&format!(
+                "lights: fitted/true luminance per light over their geometric mean {} (worst {:.1}% off; global scale {scale:.3})\n",
+                rel.join(", "),
+                worst * 100.0
+            ));
+        }
+        let judged: Vec<&GraphChoice> = self.graph_choice.iter().filter(|c| c.matches.is_some()).collect();
+        if !self.graph_choice.is_empty() {
+            let right = judged.iter().filter(|c| c.matches == Some(true)).count();
+            s.push_str(&format!(
+                "graph choice: {right} of {} parts with a judged texture kind fitted with the expected family\n",
+                judged.len()
+            ));
+            for c in &self.graph_choice {
+                let verdict = match c.matches {
+                    Some(true) => "expected",
+                    Some(false) => "other family",
+                    None => "not judged",
+                };
+                s.push_str(&format!(
+                    "  {:<28} true {:<14} fitted {:<22} ({}) {verdict}\n",
+                    c.part, c.kind, c.graph, c.category
+                ));
+            }
         }
         let times: Vec<String> = self.timings.iter().map(|(n, t)| format!("{n} {t:.1} s")).collect();
         s.push_str(&format!("time: {} (wall {:.1} s)\n", times.join(", "), self.wall_seconds));
@@ -243,6 +280,9 @@ impl Evaluation {
             "ratios": ratios,
             "parts": part_rows,
             "images": images,
+            "graph_choice": self.graph_choice.iter().map(|c| json!({
+                "part": c.part, "true_kind": c.kind, "graph": c.graph, "category": c.category, "expected_family": c.matches,
+            })).collect::<Vec<_>>(),
             "warnings": self.warnings,
             "timings_s": self.timings.iter().map(|(n, t)| json!({"stage": n, "seconds": t})).collect::<Vec<_>>(),
             "renders": self.renders,

@@ -37,6 +37,9 @@ struct TruthLight {
 struct TruthPart {
     name: String,
     label: u16,
+    /// What made the true texture ("planks", "stripes", "plaster", "plain", "photo", …).
+    #[serde(default)]
+    kind: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -104,6 +107,8 @@ pub struct Truth {
     pub lights: Radiances,
     /// The true relit radiances, per relit view name.
     pub relit_lights: BTreeMap<String, Radiances>,
+    /// Per true part, the kind of its texture (truth.json `parts[].kind`), where given.
+    pub part_kinds: BTreeMap<String, String>,
     pub warnings: Vec<String>,
 }
 
@@ -274,7 +279,8 @@ pub fn load(ctx: &GeometryContext) -> Result<Truth, EvalError> {
             relight: Some(Radiances { lights: ratio, environment: [1.0; 3] }),
         });
     }
-    Ok(Truth { views, lights: true_lights, relit_lights, warnings })
+    let part_kinds = file.parts.iter().filter_map(|p| Some((p.name.clone(), p.kind.clone()?))).collect();
+    Ok(Truth { views, lights: true_lights, relit_lights, part_kinds, warnings })
 }
 
 impl Radiances {

@@ -1,0 +1,151 @@
+//! `psc fit` on bad input, as a user meets it: every case ends with a clear message naming
+//! the problem, exit code 1, no panic, and no output folder (nor a staging folder beside it).
+//! Each case is a scratch copy of the bundled example room with one thing broken.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_tree(&entry.path(), &target);
+        } else {
+            std::fs::copy(entry.path(), &target).unwrap();
+        }
+    }
+}
+
+/// A scratch folder holding a copy of the example room at `<scratch>/room`.
+fn room(case: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("psc-fit-bad-{}-{case}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    copy_tree(&repo().join("examples/room"), &dir.join("room"));
+    dir
+}
+
+fn edit_scene(scratch: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
+    let path = scratch.join("room/scene.json");
+    let mut scene: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    edit(&mut scene);
+    std::fs::write(&path, serde_json::to_string_pretty(&scene).unwrap()).unwrap();
+}
+
+/// Runs `psc fit <scratch>/room --out <scratch>/out extra…`, asserts the failure contract and
+/// returns stderr.
+fn fails(scratch: &Path, extra: &[&str]) -> String {
+    let room = scratch.join("room");
+    let out = scratch.join("out");
+    let mut args = vec!["fit".to_string(), room.display().to_string(), "--out".into(), out.display().to_string()];
+    args.extend(["--quiet", "--texture-size", "0", "--render-spp", "0"].map(String::from));
+    args.extend(extra.iter().map(|s| s.to_string()));
+    let run = Command::new(env!("CARGO_BIN_EXE_psc")).args(&args).output().unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert_eq!(run.status.code(), Some(1), "psc {}: {stderr}", args.join(" "));
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(stderr.contains("error:"), "{stderr}");
+    let leftovers: Vec<_> = std::fs::read_dir(scratch)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != "room" && n != "existing" && n != "lights.json")
+        .collect();
+    assert!(leftovers.is_empty(), "left behind: {leftovers:?}");
+    stderr
+}
+
+#[test]
+fn label_image_of_another_size() {
+    let s = room("labels-size");
+    image::GrayImage::new(160, 120).save(s.join("room/views/view0_parts.png")).unwrap();
+    let err = fails(&s, &[]);
+    assert!(err.contains("160x120") && err.contains("320x240"), "{err}");
+}
+
+#[test]
+fn missing_photo() {
+    let s = room("no-photo");
+    std::fs::remove_file(s.join("room/views/view0.png")).unwrap();
+    let err = fails(&s, &[]);
+    assert!(err.contains("view0.png"), "{err}");
+}
+
+#[test]
+fn a_scene_without_views() {
+    let s = room("no-views");
+    edit_scene(&s, |v| v["views"] = serde_json::json!([]));
+    let err = fails(&s, &[]);
+    assert!(err.contains("no views"), "{err}");
+}
+
+#[test]
+fn a_camera_that_sees_nothing() {
+    let s = room("looks-away");
+    edit_scene(&s, |v| {
+        v["views"][0]["camera"]["position"] = serde_json::json!([2.8, 1.4, 10.5]);
+        v["views"][0]["camera"]["look_at"] = serde_json::json!([2.8, 1.4, 14.5]);
+    });
+    let err = fails(&s, &["--refit-rounds", "0"]);
+    assert!(err.contains("0 photo pixels agree with the model"), "{err}");
+}
+
+#[test]
+fn forced_graphs_naming_unknown_parts_or_graphs() {
+    let s = room("forced");
+    let err = fails(&s, &["--graph", "sofa=walnut"]);
+    assert!(err.contains("no part `sofa`") && err.contains("floor"), "{err}");
+    let err = fails(&s, &["--graph", "floor=no_such_graph"]);
+    assert!(err.contains("no graph `no_such_graph`"), "{err}");
+}
+
+#[test]
+fn light_files_with_bad_radiances() {
+    let s = room("lights");
+    let path = s.join("lights.json");
+    for (text, expect) in [
+        (r#"{"lights":[{"name":"ceiling0","radiance_rgb":[NaN,1,1]}]}"#, "radiance_rgb"),
+        (r#"{"lights":[{"name":"ceiling0","radiance_rgb":[-1,1,1]}]}"#, "negative"),
+        (r#"{"lights":[{"name":"ceiling0","radiance_rgb":[1e999,1,1]}]}"#, "radiance_rgb"),
+        (r#"{"lights":[{"name":"ceiling0","radiance_rgb":[1,1,1]}]}"#, "no radiance for light 'ceiling1'"),
+        (
+            r#"{"lights":[{"name":"ceiling0","radiance_rgb":[1,1,1]},{"name":"ceiling1","radiance_rgb":[1,1,1]},
+               {"name":"ceiling2","radiance_rgb":[1,1,1]},{"name":"no_such_light","radiance_rgb":[1,1,1]}]}"#,
+            "'no_such_light' is not in the scene",
+        ),
+    ] {
+        std::fs::write(&path, text).unwrap();
+        let err = fails(&s, &["--lights", path.to_str().unwrap()]);
+        assert!(err.contains(expect), "{text}: {err}");
+    }
+}
+
+#[test]
+fn a_library_with_a_broken_graph() {
+    let s = room("library");
+    let lib = s.join("room/lib");
+    copy_tree(&repo().join("graphs"), &lib);
+    std::fs::write(lib.join("broken.psg"), "graph broken { output albedo = ; }\n").unwrap();
+    let err = fails(&s, &["--lib", lib.to_str().unwrap()]);
+    assert!(err.contains("broken.psg:1:"), "{err}");
+}
+
+#[test]
+fn an_existing_output_folder_is_refused_before_any_work() {
+    let s = room("exists");
+    let existing = s.join("existing");
+    std::fs::create_dir_all(&existing).unwrap();
+    std::fs::write(existing.join("keep.txt"), "mine").unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_psc"))
+        .args(["fit", s.join("room").to_str().unwrap(), "--out", existing.to_str().unwrap(), "--quiet"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("already exists") && stderr.contains("--force"), "{stderr}");
+    assert_eq!(std::fs::read_to_string(existing.join("keep.txt")).unwrap(), "mine");
+}

@@ -1,0 +1,122 @@
+//! The loop after the per-part fit (PhotoScene Sec. 3.4): with every part's graph, parameters
+//! and UV transform frozen, solve the lights globally under the fitted materials, re-render the
+//! light grids, and re-fit each part's albedo scale and roughness; then match each part's mean
+//! colour over all its usable pixels.
+//!
+//! The whole-part mean match exists because the appearance fit sees a window of at most
+//! `fit_pixels` pixels: on a large wall the window's light is not the part's light, and a scale
+//! fitted there is biased on the rest of the part. The match is exact in the statistic the
+//! photo shows (the mean sRGB value of the part), and cheap: one render of the part.
+
+use psc_render::Renderer;
+use psc_runtime::library::{Library, Material};
+
+use crate::align::AlignedPart;
+use crate::error::FitError;
+use crate::features::Scratch;
+use crate::layer::{MaterialState, Sampling, Workspace};
+use crate::light_solve::{self, LightSolve};
+use crate::lighting::{self, ShadingGrid};
+use crate::loss::PartLoss;
+use crate::observe::ViewObservation;
+use crate::optim::Free;
+use crate::part_fit::{fit_part, FitSettings, Problem};
+use crate::pipeline::{flat_colour, flat_state, FitOptions, PartResult, PartStatus};
+use crate::targets::part_view;
+
+/// Solves every emitter's radiance under the renderer's current materials (see
+/// [`light_solve`]).
+pub fn solve_lights(renderer: &Renderer, views: &[ViewObservation], seed: u64) -> Result<LightSolve, FitError> {
+    let renders = lighting::unit_renders(renderer, views, seed)?;
+    light_solve::solve(views, &renders)
+}
+
+/// Everything a part's re-fit reads, shared by all parts of a round.
+pub struct RoundInputs<'a> {
+    pub library: &'a Library,
+    pub homogeneous: &'a Material,
+    pub renderer: &'a Renderer,
+    pub views: &'a [ViewObservation],
+    pub aligned: &'a [Vec<AlignedPart>],
+    pub shading: &'a [ShadingGrid],
+    pub options: &'a FitOptions,
+}
+
+impl RoundInputs<'_> {
+    fn aligned_part(&self, part: &PartResult) -> Option<(usize, &AlignedPart)> {
+        let v = part.view_index?;
+        let index = self.renderer.part_names().iter().position(|p| p == &part.name)?;
+        self.aligned[v].iter().find(|a| a.part as usize == index).map(|a| (v, a))
+    }
+}
+
+/// Re-fits a part's albedo scale and roughness under new lighting (graph, parameters and UV
+/// transform frozen), as PhotoScene's re-fit; homogeneous parts get their colour anew.
+pub fn refit_appearance(inputs: &RoundInputs, part: &mut PartResult) -> Result<(), FitError> {
+    let Some((v, a)) = inputs.aligned_part(part) else { return Ok(()) };
+    let (obs, options) = (&inputs.views[v], inputs.options);
+    let geometry = inputs.renderer.geometry();
+    let mut ws = Workspace::default();
+    if part.status == PartStatus::Homogeneous {
+        if let Some(view) = part_view(obs, a, geometry, &obs.camera, &inputs.shading[v], options.search_pixels, 1.0) {
+            let colour = flat_colour(inputs.homogeneous, &view, &mut ws)?;
+            part.state = flat_state(inputs.homogeneous, colour, part.state.roughness);
+        }
+        return Ok(());
+    }
+    let Some(fit_view) = part_view(obs, a, geometry, &obs.camera, &inputs.shading[v], options.fit_pixels, 1.0) else {
+        return Ok(());
+    };
+    let material = inputs.library.get(&part.graph).expect("fitted graphs come from the library");
+    let mut scratch = Scratch::default();
+    let fit_loss = PartLoss::new(&fit_view, options.loss, &options.features, &mut scratch)?;
+    let problem =
+        Problem { material, fit_view: &fit_view, fit_loss: &fit_loss, search_view: &fit_view, search_loss: &fit_loss };
+    let settings =
+        FitSettings { max_iterations: options.refit_iterations, starts: 1, start_iterations: 0, ..options.fit };
+    let fit = fit_part(&problem, std::slice::from_ref(&part.state), &settings, Free::APPEARANCE)?;
+    part.state = fit.state;
+    part.loss = fit.loss;
+    part.history.extend(fit.history);
+    part.iterations += fit.iterations;
+    Ok(())
+}
+
+/// Samples per axis when the whole part is rendered for its mean: the mean needs no detail.
+const MEAN_SAMPLING: Sampling = Sampling { density: 160.0, max_per_axis: 2 };
+
+/// Sets the part's albedo scale so that its render matches the photo's mean sRGB colour over
+/// every usable pixel of its chosen view, and its roughness scale so that the output's
+/// roughness map has the fitted mean. Returns the relative change of the scale (max channel).
+pub fn match_whole_part(inputs: &RoundInputs, part: &mut PartResult) -> Result<f32, FitError> {
+    let Some((v, a)) = inputs.aligned_part(part) else { return Ok(0.0) };
+    if part.status == PartStatus::Unobserved {
+        return Ok(0.0);
+    }
+    let obs = &inputs.views[v];
+    let Some(view) = part_view(obs, a, inputs.renderer.geometry(), &obs.camera, &inputs.shading[v], usize::MAX, 1.0)
+    else {
+        return Ok(0.0);
+    };
+    let material = inputs.library.get(&part.graph).expect("fitted graphs come from the library");
+    let mut ws = Workspace::default();
+    view.render(material, &part.state, MEAN_SAMPLING, &mut ws)?;
+    let scale = view.mean_matching_albedo_scale(&part.state, &ws);
+    let change = (0..3)
+        .map(|c| (scale[c] / part.state.albedo_scale[c].max(1e-6) - 1.0).abs())
+        .fold(0.0f32, f32::max);
+    part.state.albedo_scale = scale;
+    part.roughness_scale = roughness_scale(&part.state, &ws);
+    Ok(change)
+}
+
+/// The factor on the graph's roughness map whose mean over the last render in `ws` is the
+/// part-wide fitted roughness.
+pub fn roughness_scale(state: &MaterialState, ws: &Workspace) -> f32 {
+    let map_mean = ws.channel_mean(psc_compiler::Channel::Roughness);
+    if map_mean > 1e-4 {
+        (state.roughness / map_mean).clamp(0.0, 50.0)
+    } else {
+        1.0
+    }
+}
