@@ -29,10 +29,25 @@ fn text(o: &Output) -> String {
 const OBSERVED: [&str; 7] =
     ["floor", "ceiling", "walls", "rug", "crate_crate", "barrel_barrelRing", "barrel_barrelS_D"];
 
+/// Scratch folders of earlier runs whose process has ended (the shared fit output outlives the
+/// tests that use it, so each run clears its predecessors'; Linux only, where `/proc` tells).
+fn remove_stale_scratch() {
+    let Ok(entries) = std::fs::read_dir(std::env::temp_dir()) else { return };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().to_string();
+        let Some(pid) = name.strip_prefix("psc-fitted-room-").and_then(|p| p.parse::<u32>().ok()) else { continue };
+        if pid != std::process::id() && Path::new("/proc/self").exists() && !Path::new(&format!("/proc/{pid}")).exists()
+        {
+            let _ = std::fs::remove_dir_all(e.path());
+        }
+    }
+}
+
 /// The fit output, made on first use.
 fn fitted() -> &'static Path {
     static FIT: OnceLock<PathBuf> = OnceLock::new();
     FIT.get_or_init(|| {
+        remove_stale_scratch();
         let out = scratch().join("fit");
         let _ = std::fs::remove_dir_all(&out);
         let scene = repo().join("examples/room");

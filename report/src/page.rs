@@ -13,6 +13,8 @@ use crate::svg::loss_curve;
 
 /// Longest side of the photos and renders as embedded.
 const VIEW_SIDE: usize = 640;
+/// Longest side of the part crops as embedded (a wall in a large photo is most of it).
+const CROP_SIDE: usize = 480;
 /// Longest side of the baked-map swatches.
 const SWATCH_SIDE: usize = 128;
 
@@ -185,7 +187,7 @@ fn crops(fit: &FitFolder, part: &Part, photos: &BTreeMap<String, Result<Rgb8, St
     let mut s = String::new();
     match photos.get(view_name) {
         Some(Ok(p)) if (p.width, p.height) == (labels.width, labels.height) => {
-            let c = part_crop(p, labels, &values, bounds);
+            let c = part_crop(p, labels, &values, bounds).fit_within(CROP_SIDE);
             s.push_str(&figure(&img(&c.data_uri(), "photo crop", "crop"), &format!("photo, {}", esc(view_name))));
         }
         Some(Ok(_)) => s.push_str(&missing("Crop", "the label image and the photo differ in size")),
@@ -194,7 +196,7 @@ fn crops(fit: &FitFolder, part: &Part, photos: &BTreeMap<String, Result<Rgb8, St
     }
     if let Some(Ok(r)) = fit.render_of(view_name).map(|p| Rgb8::read(&p)) {
         if (r.width, r.height) == (labels.width, labels.height) {
-            let c = part_crop(&r, labels, &values, bounds);
+            let c = part_crop(&r, labels, &values, bounds).fit_within(CROP_SIDE);
             s.push_str(&figure(&img(&c.data_uri(), "render crop", "crop"), "re-render"));
         }
     }
