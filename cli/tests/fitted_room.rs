@@ -4,6 +4,7 @@
 //! loaded from outside; `psc render <fit>` renders it from a camera; `--set` of a colour changes
 //! that part's pixels in the expected direction and leaves the others; bad edits fail cleanly.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
@@ -98,7 +99,8 @@ fn in_chromium(page: &Path, images: usize) {
     else {
         let message =
             "SKIPPED: the headless-browser check of report.html (no chromium installed; `apt-get install chromium`)";
-        eprintln!("\n*** {message} ***\n");
+        // Straight to the process's stderr: `eprintln!` is captured and hidden when the test passes.
+        let _ = writeln!(std::io::stderr(), "\n*** {message} ***\n");
         if std::env::var_os("CI").is_some() && std::env::var_os("PSC_CHROMIUM_INSTALL_FAILED").is_none() {
             panic!("{message}, and CI is set while .ci/run reported no failed install");
         }
