@@ -102,9 +102,7 @@ pub fn match_whole_part(inputs: &RoundInputs, part: &mut PartResult) -> Result<f
     let mut ws = Workspace::default();
     view.render(material, &part.state, MEAN_SAMPLING, &mut ws)?;
     let scale = view.mean_matching_albedo_scale(&part.state, &ws);
-    let change = (0..3)
-        .map(|c| (scale[c] / part.state.albedo_scale[c].max(1e-6) - 1.0).abs())
-        .fold(0.0f32, f32::max);
+    let change = (0..3).map(|c| (scale[c] / part.state.albedo_scale[c].max(1e-6) - 1.0).abs()).fold(0.0f32, f32::max);
     part.state.albedo_scale = scale;
     part.roughness_scale = roughness_scale(&part.state, &ws);
     Ok(change)

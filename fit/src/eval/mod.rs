@@ -254,13 +254,19 @@ pub fn expected_categories(kind: &str) -> Option<&'static [&'static str]> {
     }
 }
 
-fn graph_choices(materials: &Path, kinds: &BTreeMap<String, String>, library: &Library) -> Result<Vec<GraphChoice>, EvalError> {
+fn graph_choices(
+    materials: &Path,
+    kinds: &BTreeMap<String, String>,
+    library: &Library,
+) -> Result<Vec<GraphChoice>, EvalError> {
     let text = std::fs::read_to_string(materials).map_err(|e| EvalError(format!("{}: {e}", materials.display())))?;
     let v: serde_json::Value = serde_json::from_str(&text)
         .map_err(|e| EvalError(format!("{}:{}:{}: {e}", materials.display(), e.line(), e.column())))?;
     let mut out = Vec::new();
     for (part, kind) in kinds {
-        let Some(graph) = v.pointer(&format!("/parts/{}/graph", part.replace('~', "~0").replace('/', "~1"))).and_then(|g| g.as_str()) else {
+        let Some(graph) =
+            v.pointer(&format!("/parts/{}/graph", part.replace('~', "~0").replace('/', "~1"))).and_then(|g| g.as_str())
+        else {
             continue;
         };
         let category = library.get(graph).map_or_else(|| "?".to_string(), |m| m.graph.info.category.clone());
