@@ -452,6 +452,14 @@ fn run(
                 change * 100.0
             ));
             result.radiance = solve.radiance.clone();
+            // The joint solve's albedo factors start the re-fit (which then refines them).
+            for (part, factor) in result.parts.iter_mut().zip(&solve.part_scales) {
+                if part.status != PartStatus::Unobserved {
+                    for c in 0..3 {
+                        part.state.albedo_scale[c] *= factor[c];
+                    }
+                }
+            }
             result.light_source = format!(
                 "solved per light under the fitted materials (NNLS, robust), round {} of at most {}",
                 round + 1,

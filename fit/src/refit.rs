@@ -24,11 +24,11 @@ use crate::part_fit::{fit_part, FitSettings, Problem};
 use crate::pipeline::{flat_colour, flat_state, FitOptions, PartResult, PartStatus};
 use crate::targets::part_view;
 
-/// Solves every emitter's radiance under the renderer's current materials (see
-/// [`light_solve`]).
+/// Solves every emitter's radiance jointly with a factor on every part's albedo, under the
+/// renderer's current materials (see [`light_solve::solve_with_part_scales`]).
 pub fn solve_lights(renderer: &Renderer, views: &[ViewObservation], seed: u64) -> Result<LightSolve, FitError> {
     let renders = lighting::unit_renders(renderer, views, seed)?;
-    light_solve::solve(views, &renders)
+    light_solve::solve_with_part_scales(views, &renders)
 }
 
 /// Everything a part's re-fit reads, shared by all parts of a round.
