@@ -75,26 +75,44 @@ fn solve_impl(
     if slots == 0 {
         return Err(FitError::Input("the scene has no lights to solve for".into()));
     }
-    // Gather (photo, part, unit renders) per usable pixel.
-    let mut photo: Vec<[f32; 3]> = Vec::new();
-    let mut part_of: Vec<usize> = Vec::new();
-    let mut unit: Vec<[f32; 3]> = Vec::new(); // pixel-major, `slots` entries per pixel
-    let mut n_parts = 0usize;
+    let mut samples = Samples { slots, ..Samples::default() };
     for (obs, slot_images) in views.iter().zip(renders) {
         for i in usable_pixels(obs) {
-            photo.push(obs.photo.linear[i]);
-            let part = obs.geo.part[i] as usize;
-            n_parts = n_parts.max(part + 1);
-            part_of.push(part);
-            unit.extend(slot_images.iter().map(|img| img[i]));
+            samples.push(obs.photo.linear[i], obs.geo.part[i] as usize, slot_images.iter().map(|img| img[i]));
         }
     }
-    let n = photo.len();
-    if n < 100 {
+    if samples.photo.len() < 100 {
         return Err(FitError::Input(format!(
-            "cannot solve the lights: only {n} photo pixels agree with the model (give --lights with known radiances)"
+            "cannot solve the lights: only {} photo pixels agree with the model (give --lights with known radiances)",
+            samples.photo.len()
         )));
     }
+    Ok(solve_samples(&samples, fit_scales))
+}
+
+/// The solve's pixels: photo value, part, and the unit-radiance render of every slot.
+#[derive(Default)]
+struct Samples {
+    slots: usize,
+    n_parts: usize,
+    photo: Vec<[f32; 3]>,
+    part_of: Vec<usize>,
+    /// Pixel-major, `slots` entries per pixel.
+    unit: Vec<[f32; 3]>,
+}
+
+impl Samples {
+    fn push(&mut self, photo: [f32; 3], part: usize, unit: impl Iterator<Item = [f32; 3]>) {
+        self.photo.push(photo);
+        self.part_of.push(part);
+        self.n_parts = self.n_parts.max(part + 1);
+        self.unit.extend(unit);
+    }
+}
+
+fn solve_samples(samples: &Samples, fit_scales: bool) -> LightSolve {
+    let Samples { slots, n_parts, photo, part_of, unit } = samples;
+    let (slots, n_parts, n) = (*slots, *n_parts, photo.len());
     let mut radiance = vec![[0.0f32; 3]; slots];
     let mut part_scales = vec![[1.0f32; 3]; n_parts];
     let mut rms = [0.0f32; 3];
@@ -149,7 +167,8 @@ fn solve_impl(
                 outliers = weight.iter().filter(|&&w| w < 0.5).count();
             }
             if fit_scales {
-                let (mut num, mut den, mut count) = (vec![0.0f64; n_parts], vec![0.0f64; n_parts], vec![0usize; n_parts]);
+                let (mut num, mut den, mut count) =
+                    (vec![0.0f64; n_parts], vec![0.0f64; n_parts], vec![0usize; n_parts]);
                 for p in 0..n {
                     let g = part_of[p];
                     num[g] += weight[p] * f64::from(photo[p][c]) * model[p];
@@ -201,14 +220,14 @@ fn solve_impl(
         }
     }
     let total: f64 = light.iter().sum::<f64>().max(1e-12);
-    Ok(LightSolve {
+    LightSolve {
         radiance,
         share: light.iter().map(|l| (l / total) as f32).collect(),
         pixels: n,
         relative_rms: rms,
         outliers: outliers as f32 / n as f32,
         part_scales,
-    })
+    }
 }
 
 /// min ½ xᵀGx − hᵀx subject to x ≥ 0 (G symmetric positive semi-definite): the Lawson–Hanson
@@ -310,6 +329,46 @@ mod tests {
             let y = brute_force(&g, &h);
             for (p, q) in x.iter().zip(&y) {
                 assert!((p - q).abs() < 1e-8 * (1.0 + q.abs()), "trial {trial}: {x:?} vs {y:?}");
+            }
+        }
+    }
+
+    /// Three parts under two lights whose mix varies across each part and differs between parts; the albedos the renders
+    /// assumed are off by a factor per part. The joint solve recovers the lights' ratio and the
+    /// factors (up to the global scale), and the plain solve, which trusts the albedos, does not.
+    #[test]
+    fn the_joint_solve_separates_lights_from_albedo_errors() {
+        let mut rng = SplitMix64::new(5);
+        let true_radiance = [[30.0f32, 20.0, 10.0], [10.0, 12.0, 14.0]];
+        let albedo_error = [0.6f32, 1.0, 1.5];
+        let mut samples = Samples { slots: 2, ..Samples::default() };
+        for p in 0..3000 {
+            let part = p % 3;
+            // Part 0 lies mostly under light 0, part 2 under light 1 (as furniture near a lamp).
+            let t = 1.0 - (part as f32 + 1.5 * rng.next_f64() as f32) / 3.5;
+            let unit = [[t * 0.01; 3], [(1.0 - t) * 0.01 + 0.002; 3]];
+            let photo: [f32; 3] = std::array::from_fn(|c| {
+                let clean = albedo_error[part] * (true_radiance[0][c] * unit[0][c] + true_radiance[1][c] * unit[1][c]);
+                clean * (1.0 + 0.02 * (rng.next_f64() as f32 - 0.5))
+            });
+            samples.push(photo, part, unit.into_iter());
+        }
+        let joint = solve_samples(&samples, true);
+        let plain = solve_samples(&samples, false);
+        let geo_mean = (albedo_error.iter().map(|a| a.ln()).sum::<f32>() / 3.0).exp();
+        for c in 0..3 {
+            let true_ratio = true_radiance[0][c] / true_radiance[1][c];
+            let joint_ratio = joint.radiance[0][c] / joint.radiance[1][c];
+            let plain_ratio = plain.radiance[0][c] / plain.radiance[1][c];
+            assert!((joint_ratio / true_ratio - 1.0).abs() < 0.02, "channel {c}: {joint_ratio} vs {true_ratio}");
+            assert!((plain_ratio / true_ratio - 1.0).abs() > 0.05, "the plain solve should be off: {plain_ratio}");
+            for part in 0..3 {
+                let expected = albedo_error[part] / geo_mean;
+                assert!(
+                    (joint.part_scales[part][c] / expected - 1.0).abs() < 0.02,
+                    "part {part}: {:?}",
+                    joint.part_scales
+                );
             }
         }
     }
