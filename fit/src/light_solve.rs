@@ -122,24 +122,7 @@ fn solve_samples(samples: &Samples, fit_scales: bool) -> LightSolve {
         let mut scale = vec![1.0f64; n_parts];
         let mut x = vec![0.0f64; slots];
         for _ in 0..ROUNDS {
-            let mut g = DMatrix::<f64>::zeros(slots, slots);
-            let mut h = DVector::<f64>::zeros(slots);
-            for p in 0..n {
-                let a = &unit[p * slots..(p + 1) * slots];
-                let (w, b, sp) = (weight[p], f64::from(photo[p][c]), scale[part_of[p]]);
-                for j in 0..slots {
-                    let aj = sp * f64::from(a[j][c]);
-                    h[j] += w * aj * b;
-                    for k in j..slots {
-                        g[(j, k)] += w * aj * sp * f64::from(a[k][c]);
-                    }
-                }
-            }
-            for j in 0..slots {
-                for k in 0..j {
-                    g[(j, k)] = g[(k, j)];
-                }
-            }
+            let (g, h) = normal_equations(samples, c, &weight, &scale);
             x = nnls(&g, &h);
             let model: Vec<f64> = (0..n)
                 .map(|p| {
@@ -189,19 +172,7 @@ fn solve_samples(samples: &Samples, fit_scales: bool) -> LightSolve {
         }
         // The scales of the last round go with a final solve of the radiances.
         if fit_scales {
-            let mut g = DMatrix::<f64>::zeros(slots, slots);
-            let mut h = DVector::<f64>::zeros(slots);
-            for p in 0..n {
-                let a = &unit[p * slots..(p + 1) * slots];
-                let (w, b, sp) = (weight[p], f64::from(photo[p][c]), scale[part_of[p]]);
-                for j in 0..slots {
-                    let aj = sp * f64::from(a[j][c]);
-                    h[j] += w * aj * b;
-                    for k in 0..slots {
-                        g[(j, k)] += w * aj * sp * f64::from(a[k][c]);
-                    }
-                }
-            }
+            let (g, h) = normal_equations(samples, c, &weight, &scale);
             x = nnls(&g, &h);
         }
         for (r, v) in radiance.iter_mut().zip(&x) {
@@ -228,6 +199,31 @@ fn solve_samples(samples: &Samples, fit_scales: bool) -> LightSolve {
         outliers: outliers as f32 / n as f32,
         part_scales,
     }
+}
+
+/// `G = AᵀWA`, `h = AᵀWb` of channel `c`, where row p of A is pixel p's unit renders times its
+/// part's scale.
+fn normal_equations(samples: &Samples, c: usize, weight: &[f64], scale: &[f64]) -> (DMatrix<f64>, DVector<f64>) {
+    let slots = samples.slots;
+    let mut g = DMatrix::<f64>::zeros(slots, slots);
+    let mut h = DVector::<f64>::zeros(slots);
+    for (p, photo) in samples.photo.iter().enumerate() {
+        let a = &samples.unit[p * slots..(p + 1) * slots];
+        let (w, b, sp) = (weight[p], f64::from(photo[c]), scale[samples.part_of[p]]);
+        for j in 0..slots {
+            let aj = sp * f64::from(a[j][c]);
+            h[j] += w * aj * b;
+            for k in j..slots {
+                g[(j, k)] += w * aj * sp * f64::from(a[k][c]);
+            }
+        }
+    }
+    for j in 0..slots {
+        for k in 0..j {
+            g[(j, k)] = g[(k, j)];
+        }
+    }
+    (g, h)
 }
 
 /// min ½ xᵀGx − hᵀx subject to x ≥ 0 (G symmetric positive semi-definite): the Lawson–Hanson

@@ -22,7 +22,7 @@ use crate::loss::{LossValue, LossWeights, PartLoss};
 use crate::observe::ViewObservation;
 use crate::optim::Free;
 use crate::part_fit::{fit_part, FitSettings, Problem};
-use crate::refit::{self, RoundInputs};
+use crate::refit::{self, RoundInputs, RoundLighting};
 use crate::select::{select, Ranked, SelectSettings};
 use crate::targets::part_view;
 use crate::uvmap::UvTransform;
@@ -406,18 +406,11 @@ fn run(
         timings,
     };
     let mut shading = shading;
+    let inputs = RoundInputs { library, homogeneous: &homogeneous, views: &views, aligned: &aligned, options };
     {
-        let inputs = RoundInputs {
-            library,
-            homogeneous: &homogeneous,
-            renderer: &renderer,
-            views: &views,
-            aligned: &aligned,
-            shading: &shading,
-            options,
-        };
+        let light = RoundLighting { renderer: &renderer, shading: &shading };
         for part in result.parts.iter_mut() {
-            refit::match_whole_part(&inputs, part)?;
+            refit::match_whole_part(&inputs, &light, part)?;
         }
     }
     lap("match part means", &mut result.timings);
@@ -472,18 +465,10 @@ fn run(
         shading =
             grids.iter().zip(&views).map(|(g, o)| ShadingGrid::new(g, &result.radiance, o.camera.position)).collect();
         progress.stage("re-fit albedo scale and roughness", n_parts as u64);
-        let inputs = RoundInputs {
-            library,
-            homogeneous: &homogeneous,
-            renderer: &renderer,
-            views: &views,
-            aligned: &aligned,
-            shading: &shading,
-            options,
-        };
+        let light = RoundLighting { renderer: &renderer, shading: &shading };
         for part in result.parts.iter_mut() {
-            refit::refit_appearance(&inputs, part)?;
-            refit::match_whole_part(&inputs, part)?;
+            refit::refit_appearance(&inputs, &light, part)?;
+            refit::match_whole_part(&inputs, &light, part)?;
             progress.advance(1);
         }
         lap(&format!("re-fit round {}", round + 1), &mut result.timings);
