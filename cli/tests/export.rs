@@ -141,15 +141,19 @@ fn check_geometry(out: &Path, assign: &Path) {
         assert!(prim.positions.len() <= 3 * tris.len() && prim.normals.len() == prim.positions.len());
         let m = assignment.parts.get(name).map_or([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], |a| a.uv.matrix());
         for (k, tri) in tris.iter().enumerate() {
-            for c in 0..3 {
+            for (c, &v) in tri.iter().enumerate() {
                 let e = prim.indices[3 * k + c] as usize;
-                let v = tri[c] as usize;
+                let v = v as usize;
                 assert_eq!(prim.positions[e], mesh.positions[v].to_array(), "{name}: triangle {k} corner {c}");
                 let [u, w] = mesh.uvs[v];
                 let s = m[0][0] * u + m[0][1] * w + m[0][2];
                 let t = m[1][0] * u + m[1][1] * w + m[1][2];
                 let tc = prim.texcoords[e];
-                assert!(close(tc[0], s) && close(tc[1], 1.0 - t), "{name}: texcoord {tc:?}, expected ({s}, {})", 1.0 - t);
+                assert!(
+                    close(tc[0], s) && close(tc[1], 1.0 - t),
+                    "{name}: texcoord {tc:?}, expected ({s}, {})",
+                    1.0 - t
+                );
             }
             // Flat-shaded model (no vn): every corner carries the face normal.
             let p3 = tri.map(|v| mesh.positions[v as usize]);
@@ -294,7 +298,12 @@ fn bad_input_is_refused_and_nothing_is_written() {
         ("unknown part", r#"{"parts": {"sofa": {"graph": "plaster"}}}"#, "", "sofa"),
         ("unknown graph", r#"{"parts": {"floor": {"graph": "no_such_graph"}}}"#, "", "no_such_graph"),
         ("negative radiance", "", r#"{"lights": [{"name": "ceiling0", "radiance_rgb": [-1, 0, 0]}]}"#, "radiance_rgb"),
-        ("radiance beyond f32", "", r#"{"lights": [{"name": "ceiling0", "radiance_rgb": [1e39, 0, 0]}]}"#, "radiance_rgb"),
+        (
+            "radiance beyond f32",
+            "",
+            r#"{"lights": [{"name": "ceiling0", "radiance_rgb": [1e39, 0, 0]}]}"#,
+            "radiance_rgb",
+        ),
     ];
     for (what, assign, lights, named) in cases {
         let a = dir.join("a.json");
@@ -364,10 +373,7 @@ fn missing(tool: &str, install: &str, ci_requires: bool, unavailable: &str) -> b
 fn the_khronos_validator_finds_no_errors() {
     let have_node = Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success());
     let have_package = root().join(".ci/node_modules/gltf-validator").is_dir()
-        || Command::new("node")
-            .args(["-e", "require('gltf-validator')"])
-            .output()
-            .is_ok_and(|o| o.status.success());
+        || Command::new("node").args(["-e", "require('gltf-validator')"]).output().is_ok_and(|o| o.status.success());
     if !(have_node && have_package)
         && missing(
             "gltf-validator",
@@ -380,11 +386,8 @@ fn the_khronos_validator_finds_no_errors() {
     }
     let dir = scratch("validator");
     let out = export_room(&dir, None, "64");
-    let o = Command::new("node")
-        .arg(root().join("tools/gltf_validate.js"))
-        .arg(out.join("scene.gltf"))
-        .output()
-        .unwrap();
+    let o =
+        Command::new("node").arg(root().join("tools/gltf_validate.js")).arg(out.join("scene.gltf")).output().unwrap();
     println!("{}", text(&o));
     assert_eq!(o.status.code(), Some(0), "the validator reports errors:\n{}", text(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains(" 0 errors"), "{}", text(&o));
@@ -415,10 +418,7 @@ fn agrees((mean, channels, block, _): &(f64, [f64; 3], f64, String), tol: f64, b
 
 #[test]
 fn mitsuba_renders_the_export_close_to_psc_render() {
-    let have = Command::new("python3")
-        .args(["-c", "import mitsuba, numpy"])
-        .output()
-        .is_ok_and(|o| o.status.success());
+    let have = Command::new("python3").args(["-c", "import mitsuba, numpy"]).output().is_ok_and(|o| o.status.success());
     if !have && missing("mitsuba", "pip install mitsuba numpy", true, "PSC_MITSUBA_UNAVAILABLE") {
         return;
     }

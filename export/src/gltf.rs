@@ -39,7 +39,7 @@ struct Builder {
 impl Builder {
     /// A view over `bytes` (4-byte aligned in the buffer).
     fn view(&mut self, bytes: &[u8], stride: Option<usize>, target: buffer::Target) -> Index<buffer::View> {
-        while self.bin.len() % 4 != 0 {
+        while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
         let offset = self.bin.len();
@@ -221,10 +221,8 @@ pub fn write(dir: &Path, scene: &Scene, prepared: &Prepared) -> Result<Vec<PathB
                 m.pbr_metallic_roughness.roughness_factor = material::StrengthFactor(roughness.clamp(0.0, 1.0));
             }
         }
-        m.extensions = Some(json::extensions::material::Material {
-            specular: Some(specular_extension()),
-            ..Default::default()
-        });
+        m.extensions =
+            Some(json::extensions::material::Material { specular: Some(specular_extension()), ..Default::default() });
         uses_specular = true;
         let material = b.root.push(m);
         let primitive = b.primitive(&part.mesh, tangents, material);
@@ -301,7 +299,7 @@ pub fn write(dir: &Path, scene: &Scene, prepared: &Prepared) -> Result<Vec<PathB
     if uses_strength {
         b.root.extensions_used.push("KHR_materials_emissive_strength".into());
     }
-    while b.bin.len() % 4 != 0 {
+    while !b.bin.len().is_multiple_of(4) {
         b.bin.push(0);
     }
     b.root.push(json::Buffer {

@@ -81,9 +81,7 @@ pub const MAX_TEXTURE_SIZE: usize = 16384;
 fn check_options(options: &ExportOptions) -> Result<(), ExportError> {
     let n = options.texture_size;
     if n == 0 || n > MAX_TEXTURE_SIZE {
-        return Err(ExportError::Input(format!(
-            "texture size {n}: expected 1 to {MAX_TEXTURE_SIZE} texels a side"
-        )));
+        return Err(ExportError::Input(format!("texture size {n}: expected 1 to {MAX_TEXTURE_SIZE} texels a side")));
     }
     psc_base::limits::check_elements(
         format!("baked map of {n}x{n} texels"),
@@ -186,8 +184,7 @@ fn write_textures(dir: &Path, prepared: &prepare::Prepared) -> Result<Vec<PathBu
         if let Some(normal) = &maps.normal {
             files.push(write_png(dir, &names.normal, n, 3, normal)?);
             if mitsuba_flips_normal(part) {
-                let flipped: Vec<u8> =
-                    normal.chunks_exact(3).flat_map(|c| [c[0], 255 - c[1], c[2]]).collect();
+                let flipped: Vec<u8> = normal.chunks_exact(3).flat_map(|c| [c[0], 255 - c[1], c[2]]).collect();
                 files.push(write_png(dir, &names.normal_flipped, n, 3, &flipped)?);
             }
         }
@@ -196,7 +193,13 @@ fn write_textures(dir: &Path, prepared: &prepare::Prepared) -> Result<Vec<PathBu
 }
 
 /// Encodes an 8-bit PNG (`channels` 1 or 3) into `dir/rel`, creating its folder.
-pub(crate) fn write_png(dir: &Path, rel: &str, size: usize, channels: usize, data: &[u8]) -> Result<PathBuf, ExportError> {
+pub(crate) fn write_png(
+    dir: &Path,
+    rel: &str,
+    size: usize,
+    channels: usize,
+    data: &[u8],
+) -> Result<PathBuf, ExportError> {
     let path = dir.join(rel);
     if let Some(parent) = path.parent() {
         std::fs::create_dir_all(parent).map_err(|e| ExportError::io(parent, e))?;

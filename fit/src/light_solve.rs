@@ -143,7 +143,8 @@ pub fn nnls(g: &DMatrix<f64>, h: &DVector<f64>) -> Vec<f64> {
     let tol = 1e-12 * scale;
     let mut x = vec![0.0f64; n];
     let mut passive = vec![false; n];
-    let gradient = |x: &[f64]| -> Vec<f64> { (0..n).map(|i| h[i] - (0..n).map(|j| g[(i, j)] * x[j]).sum::<f64>()).collect() };
+    let gradient =
+        |x: &[f64]| -> Vec<f64> { (0..n).map(|i| h[i] - (0..n).map(|j| g[(i, j)] * x[j]).sum::<f64>()).collect() };
     for _ in 0..3 * n + 3 {
         let w = gradient(&x);
         let Some(j) = (0..n).filter(|&j| !passive[j] && w[j] > tol).max_by(|&a, &b| w[a].total_cmp(&w[b])) else {
