@@ -9,6 +9,16 @@ import sys
 import bpy
 
 try:
+    import numpy
+
+    # Debian 12's Blender 3.4 glTF importer uses `np.bool`, which NumPy 1.24 removed (its
+    # python3-numpy): give the alias back so the importer runs.
+    if not hasattr(numpy, "bool"):
+        numpy.bool = bool
+except ImportError:
+    pass  # the importer says it needs numpy (Debian: apt-get install python3-numpy)
+
+try:
     argv = sys.argv[sys.argv.index("--") + 1:]
     gltf, frame = argv[0], argv[1]
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -22,6 +32,7 @@ try:
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
     scene.cycles.samples = 4
+    scene.cycles.use_denoising = False  # Debian builds Cycles without OpenImageDenoise
     scene.render.resolution_x = 160
     scene.render.resolution_y = 120
     scene.render.resolution_percentage = 100

@@ -473,7 +473,7 @@ fn mitsuba_renders_the_export_close_to_psc_render() {
 fn blender_imports_the_gltf_and_renders_a_frame() {
     let have = Command::new("blender").arg("--version").output().is_ok_and(|o| o.status.success());
     if !have {
-        eprintln!("\n==== SKIPPED: blender not installed (apt-get install blender) ====\n");
+        eprintln!("\n==== SKIPPED: blender not installed (apt-get install blender python3-numpy) ====\n");
         return;
     }
     let dir = scratch("blender");

@@ -1,5 +1,6 @@
 //! `scene_mitsuba.xml` + `meshes/*.ply`: the room as a Mitsuba 3 scene that renders the input
-//! views (`mitsuba scene_mitsuba.xml`, or `mi.load_file` and `mi.render(scene, sensor=i)`).
+//! views (`mitsuba -s i -o view.exr scene_mitsuba.xml` renders view i, in the order of
+//! scene.json; from Python `mi.render(mi.load_file(…), sensor=i)`).
 //!
 //! - Per part a binary PLY (positions, normals, uv as [`crate::prepare`] makes them) and the
 //!   BSDF closest to the renderer's Karis model (`render/src/brdf.rs`: Lambert + GGX, Schlick
@@ -79,8 +80,9 @@ pub fn write(dir: &Path, scene: &Scene, prepared: &Prepared) -> Result<Vec<PathB
     let mut files = Vec::new();
     let mut x = String::new();
     let _ = writeln!(x, "<?xml version=\"1.0\" encoding=\"utf-8\"?>");
-    let _ = writeln!(x, "<!-- photoscene psc-export: the fitted room for Mitsuba 3. Render view i with");
-    let _ = writeln!(x, "     mi.render(mi.load_file('scene_mitsuba.xml'), sensor=i); -D spp=N sets the samples. -->");
+    let _ = writeln!(x, "<!-- photoscene psc-export: the fitted room for Mitsuba 3, one sensor per view of scene.json.");
+    let _ = writeln!(x, "     Render view i: mitsuba -s i -D spp=256 -o view.exr scene_mitsuba.xml");
+    let _ = writeln!(x, "     (Python: mi.render(mi.load_file('scene_mitsuba.xml', spp='256'), sensor=i)). -->");
     let _ = writeln!(x, "<scene version=\"3.0.0\">");
     let _ = writeln!(x, "  <default name=\"spp\" value=\"64\"/>");
     let _ = writeln!(x, "  <default name=\"max_depth\" value=\"6\"/>");
