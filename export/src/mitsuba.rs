@@ -80,7 +80,8 @@ pub fn write(dir: &Path, scene: &Scene, prepared: &Prepared) -> Result<Vec<PathB
     let mut files = Vec::new();
     let mut x = String::new();
     let _ = writeln!(x, "<?xml version=\"1.0\" encoding=\"utf-8\"?>");
-    let _ = writeln!(x, "<!-- photoscene psc-export: the fitted room for Mitsuba 3, one sensor per view of scene.json.");
+    let _ =
+        writeln!(x, "<!-- photoscene psc-export: the fitted room for Mitsuba 3, one sensor per view of scene.json.");
     let _ = writeln!(x, "     Render view i: mitsuba -s i -D spp=256 -o view.exr scene_mitsuba.xml");
     let _ = writeln!(x, "     (Python: mi.render(mi.load_file('scene_mitsuba.xml', spp='256'), sensor=i)). -->");
     let _ = writeln!(x, "<scene version=\"3.0.0\">");
