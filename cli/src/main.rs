@@ -9,6 +9,7 @@ mod bench;
 mod checks;
 mod compile;
 mod eval;
+mod export;
 mod fit;
 mod library;
 mod progress;
@@ -41,6 +42,8 @@ enum Command {
     Fit(fit::Args),
     /// Evaluate a fit against a dev scene's ground truth, beside the baselines.
     Eval(eval::Args),
+    /// Export a scene with its materials and lights as glTF 2.0 and as a Mitsuba 3 scene.
+    Export(export::Args),
 }
 
 /// Bad input (a file, a scene, a graph): worth showing to the user as is; exit 1.
@@ -105,6 +108,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render::run(args),
         Command::Fit(args) => fit::run(args).map_err(Error::from),
         Command::Eval(args) => eval::run(args).map_err(Error::from),
+        Command::Export(args) => export::run(args),
     };
     match result {
         Ok(code) => code,

@@ -15,10 +15,11 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// The crate folders of the workspace, bottom up.
-const CRATES: [&str; 9] = ["base", "grammar", "compiler", "jit", "render", "runtime", "fit", "cli", "tests"];
+const CRATES: [&str; 10] = ["base", "grammar", "compiler", "jit", "render", "runtime", "fit", "export", "cli", "tests"];
 
 /// The documented dependency order (each chain as ARCHITECTURE.md writes it).
-const ORDER: [&str; 2] = ["base → grammar → compiler → jit → runtime → fit → cli", "base → render → runtime"];
+const ORDER: [&str; 3] =
+    ["base → grammar → compiler → jit → runtime → fit → cli", "base → render → runtime", "runtime → export → cli"];
 
 /// Library files allowed to name ground truth in string literals: the validation module that
 /// reads it for `psc render`'s explicit truth options, the CLI that offers them, and the fit's
