@@ -10,7 +10,9 @@ use std::time::Instant;
 
 use psc_base::output::{Replace, StagedDir};
 use psc_base::progress::Progress as _;
+use psc_export::ExportOptions;
 use psc_fit::output::{self, OutputOptions};
+use psc_runtime::assign::Assignment;
 use psc_fit::pipeline::{fit_scene, refit_scene, FitOptions, Progress};
 use psc_render::scene::{LightRadiances, Scene};
 use psc_runtime::library::{default_library_root, Library};
@@ -161,6 +163,16 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     };
     progress.stage("write results", 1);
     output::write_into(staged.path(), &scene, &library, &result, &output_options)?;
+    // The same materials and lights for other tools: exactly what materials.json says.
+    let exported = if args.texture_size > 0 {
+        progress.stage("export glTF and Mitsuba scenes", 1);
+        let assignment = Assignment::read(&staged.path().join("materials.json"))?;
+        let export_options = ExportOptions { texture_size: args.texture_size };
+        let lights = result.light_radiances(&scene);
+        Some(psc_export::write_all(staged.path(), &scene, &library, &assignment, &lights, &export_options)?)
+    } else {
+        None
+    };
     staged.commit().map_err(|e| Failure(e.to_string()))?;
     progress.done();
     if !args.quiet {
@@ -170,6 +182,13 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
             started.elapsed().as_secs_f64(),
             args.out.display()
         );
+        if let Some(summary) = &exported {
+            for w in &summary.warnings {
+                eprintln!("warning: {w}");
+            }
+            eprintln!("glTF: {}", args.out.join("scene.gltf").display());
+            eprintln!("Mitsuba: {}", args.out.join("scene_mitsuba.xml").display());
+        }
     }
     Ok(ExitCode::SUCCESS)
 }
