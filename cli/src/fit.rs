@@ -8,10 +8,12 @@ use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use psc_base::progress::Progress as _;
 use psc_base::output::{Replace, StagedDir};
+use psc_base::progress::Progress as _;
+use psc_export::ExportOptions;
 use psc_fit::output::{self, OutputOptions};
-use psc_fit::pipeline::{fit_scene, FitOptions, Progress};
+use psc_runtime::assign::Assignment;
+use psc_fit::pipeline::{fit_scene, refit_scene, FitOptions, Progress};
 use psc_render::scene::{LightRadiances, Scene};
 use psc_runtime::library::{default_library_root, Library};
 
@@ -28,6 +30,11 @@ pub struct Args {
     /// Replace the output folder if it exists.
     #[arg(long)]
     force: bool,
+    /// Start from the fit already in --out (its result.json): keep every part's graph,
+    /// parameters and UV transform, and run only the light solve and the albedo/roughness
+    /// re-fit rounds; --out is then replaced.
+    #[arg(long)]
+    refit_only: bool,
     /// Known light radiances (the `psc render --lights` format) instead of estimating them.
     #[arg(long)]
     lights: Option<PathBuf>,
@@ -132,7 +139,8 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     };
     // Refuse an existing --out before hours of work, not after; the folder is built aside and
     // renamed into place at the end, so an error or Ctrl-C leaves nothing half-written.
-    let replace = if args.force { Replace::Yes } else { Replace::No };
+    let previous = if args.refit_only { Some(output::read_previous(&args.out)?) } else { None };
+    let replace = if args.force || args.refit_only { Replace::Yes } else { Replace::No };
     let staged = StagedDir::new(&args.out, replace).map_err(|e| Failure(e.to_string()))?;
     let mut options = FitOptions { seed: args.seed, ..Default::default() };
     options.forced = args.graphs.iter().cloned().collect::<BTreeMap<_, _>>();
@@ -142,16 +150,29 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     options.fit_pixels = args.fit_pixels.max(1);
     let drawer = Drawer::new(args.quiet);
     let progress = FitProgress { drawer: &drawer, open: AtomicBool::new(false) };
-    let result = fit_scene(&scene, &library, radiances.as_ref(), &options, &progress)?;
+    let result = match &previous {
+        Some(p) => refit_scene(&scene, &library, radiances.as_ref(), p, &options, &progress)?,
+        None => fit_scene(&scene, &library, radiances.as_ref(), &options, &progress)?,
+    };
     let output_options = OutputOptions {
         texture_size: args.texture_size,
         render_spp: args.render_spp,
-        force: args.force,
+        force: args.force || args.refit_only,
         seed: args.seed,
         command: std::env::args().collect::<Vec<_>>().join(" "),
     };
     progress.stage("write results", 1);
     output::write_into(staged.path(), &scene, &library, &result, &output_options)?;
+    // The same materials and lights for other tools: exactly what materials.json says.
+    let exported = if args.texture_size > 0 {
+        progress.stage("export glTF and Mitsuba scenes", 1);
+        let assignment = Assignment::read(&staged.path().join("materials.json"))?;
+        let export_options = ExportOptions { texture_size: args.texture_size };
+        let lights = result.light_radiances(&scene);
+        Some(psc_export::write_all(staged.path(), &scene, &library, &assignment, &lights, &export_options)?)
+    } else {
+        None
+    };
     staged.commit().map_err(|e| Failure(e.to_string()))?;
     progress.done();
     if !args.quiet {
@@ -161,6 +182,13 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
             started.elapsed().as_secs_f64(),
             args.out.display()
         );
+        if let Some(summary) = &exported {
+            for w in &summary.warnings {
+                eprintln!("warning: {w}");
+            }
+            eprintln!("glTF: {}", args.out.join("scene.gltf").display());
+            eprintln!("Mitsuba: {}", args.out.join("scene_mitsuba.xml").display());
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

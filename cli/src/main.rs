@@ -9,6 +9,7 @@ mod bench;
 mod checks;
 mod compile;
 mod eval;
+mod export;
 mod fit;
 mod library;
 mod progress;
@@ -42,6 +43,8 @@ enum Command {
     Fit(fit::Args),
     /// Evaluate a fit against a dev scene's ground truth, beside the baselines.
     Eval(eval::Args),
+    /// Export a scene with its materials and lights as glTF 2.0 and as a Mitsuba 3 scene.
+    Export(export::Args),
     /// Write report.html: one self-contained page showing a fit output.
     Report(report::Args),
 }
@@ -108,6 +111,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render::run(args),
         Command::Fit(args) => fit::run(args).map_err(Error::from),
         Command::Eval(args) => eval::run(args).map_err(Error::from),
+        Command::Export(args) => export::run(args),
         Command::Report(args) => report::run(args).map_err(Error::from),
     };
     match result {

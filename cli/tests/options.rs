@@ -133,7 +133,11 @@ fn requests_past_the_limits_are_refused_at_once() {
             vec!["would need about", "the limit is 16.0 GiB"],
         ),
         (v(&["library", "--bench", "1000000"]), 2, vec!["--bench:", "the limit is 67,108,864 texels"]),
-        (v(&["bench", "--size", "1000000"]), 2, vec!["--size: bake of 1000000x1000000 texels", "the limit is 67,108,864 texels"]),
+        (
+            v(&["bench", "--size", "1000000"]),
+            2,
+            vec!["--size: bake of 1000000x1000000 texels", "the limit is 67,108,864 texels"],
+        ),
         (
             v(&["bake", "oak_planks", "--size", "8", "--random", "100000000", "--out", &format!("{d}/b")]),
             2,

@@ -12,7 +12,7 @@
 use crate::observe::ViewObservation;
 
 /// Photo raster position = model raster position × `scale` + `offset` (continuous coordinates).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Warp {
     pub scale: [f32; 2],
     pub offset: [f32; 2],
@@ -29,7 +29,7 @@ impl Warp {
 }
 
 /// Why photo pixels of a part were left out, for the report.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Dropped {
     pub clipped: usize,
     pub boundary: usize,

@@ -87,7 +87,7 @@ impl Default for Sampling {
 }
 
 /// The material being fitted, in natural units.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MaterialState {
     /// One value per parameter slot of the graph.
     pub params: Vec<f32>,

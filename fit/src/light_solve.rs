@@ -11,13 +11,13 @@
 //! dominate.
 
 use nalgebra::{DMatrix, DVector};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::error::FitError;
 use crate::observe::{ViewObservation, NO_PART};
 
 /// The solved radiances and how well they explain the photos.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct LightSolve {
     /// RGB radiance per slot.
     pub radiance: Vec<[f32; 3]>,
@@ -28,10 +28,13 @@ pub struct LightSolve {
     pub relative_rms: [f32; 3],
     /// Fraction of pixels the robust weights count as outliers (weight below 0.5).
     pub outliers: f32,
+    /// Per part (model order), the RGB factor on its albedo that the joint solve found (1 for
+    /// parts with no solve pixels); their pixel-weighted geometric mean is 1 per channel.
+    pub part_scales: Vec<[f32; 3]>,
 }
 
-/// Re-weighting rounds.
-const ROUNDS: usize = 6;
+/// Alternations of (radiances by NNLS, robust weights, part scales).
+const ROUNDS: usize = 16;
 
 /// Pixels every view contributes: label agrees with the model, not clipped, not on an edge.
 fn usable_pixels(obs: &ViewObservation) -> Vec<usize> {
@@ -44,77 +47,139 @@ fn usable_pixels(obs: &ViewObservation) -> Vec<usize> {
         .collect()
 }
 
-/// Solves the radiances from `renders[view][slot]` (unit-radiance images at the views' sizes).
+/// Solves the radiances from `renders[view][slot]` (unit-radiance images at the views' sizes)
+/// with the materials they were rendered with held fixed.
 pub fn solve(views: &[ViewObservation], renders: &[Vec<Vec<[f32; 3]>>]) -> Result<LightSolve, FitError> {
+    solve_impl(views, renders, false)
+}
+
+/// Solves the radiances and, jointly, a factor on every part's albedo: a pixel's model value
+/// is `s_part · Σ_k R_k I_k(p)`, minimised by alternating NNLS for `R` with a closed-form
+/// weighted least-squares `s` per part (bilinear, so the factors' overall scale is fixed by
+/// their geometric mean). Against re-rendering after every change of the albedos this is
+/// exact for the direct light and first order for the indirect light, and costs no rendering:
+/// the re-fit rounds then only refine what the cached renders could not see.
+pub fn solve_with_part_scales(
+    views: &[ViewObservation],
+    renders: &[Vec<Vec<[f32; 3]>>],
+) -> Result<LightSolve, FitError> {
+    solve_impl(views, renders, true)
+}
+
+fn solve_impl(
+    views: &[ViewObservation],
+    renders: &[Vec<Vec<[f32; 3]>>],
+    fit_scales: bool,
+) -> Result<LightSolve, FitError> {
     let slots = renders.first().map_or(0, |r| r.len());
     if slots == 0 {
         return Err(FitError::Input("the scene has no lights to solve for".into()));
     }
-    // Gather (photo, unit renders) per usable pixel.
-    let mut photo: Vec<[f32; 3]> = Vec::new();
-    let mut unit: Vec<[f32; 3]> = Vec::new(); // pixel-major, `slots` entries per pixel
+    let mut samples = Samples { slots, ..Samples::default() };
     for (obs, slot_images) in views.iter().zip(renders) {
         for i in usable_pixels(obs) {
-            photo.push(obs.photo.linear[i]);
-            unit.extend(slot_images.iter().map(|img| img[i]));
+            samples.push(obs.photo.linear[i], obs.geo.part[i] as usize, slot_images.iter().map(|img| img[i]));
         }
     }
-    let n = photo.len();
-    if n < 100 {
+    if samples.photo.len() < 100 {
         return Err(FitError::Input(format!(
-            "cannot solve the lights: only {n} photo pixels agree with the model (give --lights with known radiances)"
+            "cannot solve the lights: only {} photo pixels agree with the model (give --lights with known radiances)",
+            samples.photo.len()
         )));
     }
+    Ok(solve_samples(&samples, fit_scales))
+}
+
+/// The solve's pixels: photo value, part, and the unit-radiance render of every slot.
+#[derive(Default)]
+struct Samples {
+    slots: usize,
+    n_parts: usize,
+    photo: Vec<[f32; 3]>,
+    part_of: Vec<usize>,
+    /// Pixel-major, `slots` entries per pixel.
+    unit: Vec<[f32; 3]>,
+}
+
+impl Samples {
+    fn push(&mut self, photo: [f32; 3], part: usize, unit: impl Iterator<Item = [f32; 3]>) {
+        self.photo.push(photo);
+        self.part_of.push(part);
+        self.n_parts = self.n_parts.max(part + 1);
+        self.unit.extend(unit);
+    }
+}
+
+fn solve_samples(samples: &Samples, fit_scales: bool) -> LightSolve {
+    let Samples { slots, n_parts, photo, part_of, unit } = samples;
+    let (slots, n_parts, n) = (*slots, *n_parts, photo.len());
     let mut radiance = vec![[0.0f32; 3]; slots];
+    let mut part_scales = vec![[1.0f32; 3]; n_parts];
     let mut rms = [0.0f32; 3];
     let mut outliers = 0usize;
     for c in 0..3 {
         let mut weight = vec![1.0f64; n];
+        let mut scale = vec![1.0f64; n_parts];
         let mut x = vec![0.0f64; slots];
         for _ in 0..ROUNDS {
-            let mut g = DMatrix::<f64>::zeros(slots, slots);
-            let mut h = DVector::<f64>::zeros(slots);
-            for p in 0..n {
-                let a = &unit[p * slots..(p + 1) * slots];
-                let (w, b) = (weight[p], f64::from(photo[p][c]));
-                for j in 0..slots {
-                    let aj = f64::from(a[j][c]);
-                    h[j] += w * aj * b;
-                    for k in j..slots {
-                        g[(j, k)] += w * aj * f64::from(a[k][c]);
-                    }
-                }
-            }
-            for j in 0..slots {
-                for k in 0..j {
-                    g[(j, k)] = g[(k, j)];
-                }
-            }
+            let (g, h) = normal_equations(samples, c, &weight, &scale);
             x = nnls(&g, &h);
+            let model: Vec<f64> = (0..n)
+                .map(|p| {
+                    let a = &unit[p * slots..(p + 1) * slots];
+                    (0..slots).map(|k| x[k] * f64::from(a[k][c])).sum()
+                })
+                .collect();
             // Cauchy weights on the relative residual, scaled by its median absolute deviation.
             let residual: Vec<f64> = (0..n)
                 .map(|p| {
-                    let a = &unit[p * slots..(p + 1) * slots];
-                    let model: f64 = (0..slots).map(|k| x[k] * f64::from(a[k][c])).sum();
                     let b = f64::from(photo[p][c]);
-                    (b - model) / b.max(0.02)
+                    (b - scale[part_of[p]] * model[p]) / b.max(0.02)
                 })
                 .collect();
             let mut abs: Vec<f64> = residual.iter().map(|r| r.abs()).collect();
             let mid = abs.len() / 2;
             let mad = *abs.select_nth_unstable_by(mid, f64::total_cmp).1;
-            let scale = (2.385 * 1.4826 * mad).max(0.02);
+            let spread = (2.385 * 1.4826 * mad).max(0.02);
             for (w, r) in weight.iter_mut().zip(&residual) {
-                *w = 1.0 / (1.0 + (r / scale).powi(2));
+                *w = 1.0 / (1.0 + (r / spread).powi(2));
             }
             let total: f64 = weight.iter().sum();
             rms[c] = (weight.iter().zip(&residual).map(|(w, r)| w * r * r).sum::<f64>() / total).sqrt() as f32;
             if c == 1 {
                 outliers = weight.iter().filter(|&&w| w < 0.5).count();
             }
+            if fit_scales {
+                let (mut num, mut den, mut count) =
+                    (vec![0.0f64; n_parts], vec![0.0f64; n_parts], vec![0usize; n_parts]);
+                for p in 0..n {
+                    let g = part_of[p];
+                    num[g] += weight[p] * f64::from(photo[p][c]) * model[p];
+                    den[g] += weight[p] * model[p] * model[p];
+                    count[g] += 1;
+                }
+                for g in 0..n_parts {
+                    if den[g] > 1e-30 && num[g] > 0.0 {
+                        scale[g] = num[g] / den[g];
+                    }
+                }
+                // The product s·R is what the photos fix: pin the scales' geometric mean to 1.
+                let counted: f64 = count.iter().map(|&k| k as f64).sum();
+                let log_mean = (0..n_parts).map(|g| count[g] as f64 * scale[g].ln()).sum::<f64>() / counted;
+                let norm = log_mean.exp();
+                scale.iter_mut().for_each(|s| *s /= norm);
+            }
+        }
+        // The scales of the last round go with a final solve of the radiances.
+        if fit_scales {
+            let (g, h) = normal_equations(samples, c, &weight, &scale);
+            x = nnls(&g, &h);
         }
         for (r, v) in radiance.iter_mut().zip(&x) {
             r[c] = *v as f32;
+        }
+        for (s, v) in part_scales.iter_mut().zip(&scale) {
+            s[c] = *v as f32;
         }
     }
     // Each slot's share of the light on the solve's pixels.
@@ -126,13 +191,39 @@ pub fn solve(views: &[ViewObservation], renders: &[Vec<Vec<[f32; 3]>>]) -> Resul
         }
     }
     let total: f64 = light.iter().sum::<f64>().max(1e-12);
-    Ok(LightSolve {
+    LightSolve {
         radiance,
         share: light.iter().map(|l| (l / total) as f32).collect(),
         pixels: n,
         relative_rms: rms,
         outliers: outliers as f32 / n as f32,
-    })
+        part_scales,
+    }
+}
+
+/// `G = AᵀWA`, `h = AᵀWb` of channel `c`, where row p of A is pixel p's unit renders times its
+/// part's scale.
+fn normal_equations(samples: &Samples, c: usize, weight: &[f64], scale: &[f64]) -> (DMatrix<f64>, DVector<f64>) {
+    let slots = samples.slots;
+    let mut g = DMatrix::<f64>::zeros(slots, slots);
+    let mut h = DVector::<f64>::zeros(slots);
+    for (p, photo) in samples.photo.iter().enumerate() {
+        let a = &samples.unit[p * slots..(p + 1) * slots];
+        let (w, b, sp) = (weight[p], f64::from(photo[c]), scale[samples.part_of[p]]);
+        for j in 0..slots {
+            let aj = sp * f64::from(a[j][c]);
+            h[j] += w * aj * b;
+            for k in j..slots {
+                g[(j, k)] += w * aj * sp * f64::from(a[k][c]);
+            }
+        }
+    }
+    for j in 0..slots {
+        for k in 0..j {
+            g[(j, k)] = g[(k, j)];
+        }
+    }
+    (g, h)
 }
 
 /// min ½ xᵀGx − hᵀx subject to x ≥ 0 (G symmetric positive semi-definite): the Lawson–Hanson
@@ -143,7 +234,8 @@ pub fn nnls(g: &DMatrix<f64>, h: &DVector<f64>) -> Vec<f64> {
     let tol = 1e-12 * scale;
     let mut x = vec![0.0f64; n];
     let mut passive = vec![false; n];
-    let gradient = |x: &[f64]| -> Vec<f64> { (0..n).map(|i| h[i] - (0..n).map(|j| g[(i, j)] * x[j]).sum::<f64>()).collect() };
+    let gradient =
+        |x: &[f64]| -> Vec<f64> { (0..n).map(|i| h[i] - (0..n).map(|j| g[(i, j)] * x[j]).sum::<f64>()).collect() };
     for _ in 0..3 * n + 3 {
         let w = gradient(&x);
         let Some(j) = (0..n).filter(|&j| !passive[j] && w[j] > tol).max_by(|&a, &b| w[a].total_cmp(&w[b])) else {
@@ -233,6 +325,46 @@ mod tests {
             let y = brute_force(&g, &h);
             for (p, q) in x.iter().zip(&y) {
                 assert!((p - q).abs() < 1e-8 * (1.0 + q.abs()), "trial {trial}: {x:?} vs {y:?}");
+            }
+        }
+    }
+
+    /// Three parts under two lights whose mix varies across each part and differs between parts; the albedos the renders
+    /// assumed are off by a factor per part. The joint solve recovers the lights' ratio and the
+    /// factors (up to the global scale), and the plain solve, which trusts the albedos, does not.
+    #[test]
+    fn the_joint_solve_separates_lights_from_albedo_errors() {
+        let mut rng = SplitMix64::new(5);
+        let true_radiance = [[30.0f32, 20.0, 10.0], [10.0, 12.0, 14.0]];
+        let albedo_error = [0.6f32, 1.0, 1.5];
+        let mut samples = Samples { slots: 2, ..Samples::default() };
+        for p in 0..3000 {
+            let part = p % 3;
+            // Part 0 lies mostly under light 0, part 2 under light 1 (as furniture near a lamp).
+            let t = 1.0 - (part as f32 + 1.5 * rng.next_f64() as f32) / 3.5;
+            let unit = [[t * 0.01; 3], [(1.0 - t) * 0.01 + 0.002; 3]];
+            let photo: [f32; 3] = std::array::from_fn(|c| {
+                let clean = albedo_error[part] * (true_radiance[0][c] * unit[0][c] + true_radiance[1][c] * unit[1][c]);
+                clean * (1.0 + 0.02 * (rng.next_f64() as f32 - 0.5))
+            });
+            samples.push(photo, part, unit.into_iter());
+        }
+        let joint = solve_samples(&samples, true);
+        let plain = solve_samples(&samples, false);
+        let geo_mean = (albedo_error.iter().map(|a| a.ln()).sum::<f32>() / 3.0).exp();
+        for c in 0..3 {
+            let true_ratio = true_radiance[0][c] / true_radiance[1][c];
+            let joint_ratio = joint.radiance[0][c] / joint.radiance[1][c];
+            let plain_ratio = plain.radiance[0][c] / plain.radiance[1][c];
+            assert!((joint_ratio / true_ratio - 1.0).abs() < 0.02, "channel {c}: {joint_ratio} vs {true_ratio}");
+            assert!((plain_ratio / true_ratio - 1.0).abs() > 0.05, "the plain solve should be off: {plain_ratio}");
+            for part in 0..3 {
+                let expected = albedo_error[part] / geo_mean;
+                assert!(
+                    (joint.part_scales[part][c] / expected - 1.0).abs() < 0.02,
+                    "part {part}: {:?}",
+                    joint.part_scales
+                );
             }
         }
     }

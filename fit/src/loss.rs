@@ -22,7 +22,7 @@ impl Default for LossWeights {
 }
 
 /// The terms of one evaluation.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
 pub struct LossValue {
     pub total: f32,
     pub statistics: f32,

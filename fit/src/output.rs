@@ -17,7 +17,7 @@ use serde_json::{json, Value};
 
 use crate::error::FitError;
 use crate::observe::Photo;
-use crate::pipeline::{FitResult, PartResult};
+use crate::pipeline::{FitResult, PartResult, PreviousFit};
 
 /// What to write besides the JSON files.
 #[derive(Clone, Debug)]
@@ -114,6 +114,24 @@ pub fn write(
     Ok(())
 }
 
+/// Reads the state a previous fit saved in `<dir>/result.json` (for `psc fit --refit-only`).
+pub fn read_previous(dir: &Path) -> Result<PreviousFit, FitError> {
+    let path = dir.join("result.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        FitError::Input(format!(
+            "{}: {e} (--refit-only starts from the output of an earlier `psc fit`)",
+            path.display()
+        ))
+    })?;
+    let value: Value = serde_json::from_str(&text)
+        .map_err(|e| FitError::Input(format!("{}:{}:{}: {e}", path.display(), e.line(), e.column())))?;
+    let state = value
+        .get("fit_state")
+        .cloned()
+        .ok_or_else(|| FitError::Input(format!("{}: no `fit_state` (written by an older psc fit?)", path.display())))?;
+    serde_json::from_value(state).map_err(|e| FitError::Input(format!("{}: fit_state: {e}", path.display())))
+}
+
 /// Writes the output files into `dir`, an existing (staging) folder.
 pub fn write_into(
     dir: &Path,
@@ -149,6 +167,8 @@ pub fn write_into(
             "command": options.command,
             "scene": scene.root.display().to_string(),
             "lights": { "source": result.light_source, "slots": result.slot_names, "radiance_rgb": result.radiance, "solve_rounds": result.light_rounds },
+            // Everything `--refit-only` starts from, exactly (f32 values round-trip in JSON).
+            "fit_state": PreviousFit { parts: result.parts.clone(), radiance: result.radiance.clone() },
             "parts": result.parts.iter().map(|p| json!({"name": p.name, "status": p.status, "graph": p.graph,
                 "loss": p.loss.total, "view": p.view})).collect::<Vec<_>>(),
             "renders": renders.iter().map(|p| p.strip_prefix(dir).unwrap_or(p).display().to_string()).collect::<Vec<_>>(),

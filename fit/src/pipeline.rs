@@ -10,19 +10,19 @@ use psc_render::scene::{LightRadiances, Scene};
 use psc_render::Renderer;
 use psc_runtime::library::Library;
 use psc_runtime::material::ProceduralMaterial;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::align::{align_view, AlignedPart, Dropped, Warp};
 use crate::error::FitError;
 use crate::features::{FeatureConfig, Scratch};
-use crate::light_solve::LightSolve;
-use crate::refit::{self, RoundInputs};
 use crate::layer::{MaterialState, PartView, Sampling, Workspace};
+use crate::light_solve::LightSolve;
 use crate::lighting::{self, GridSettings, ShadingGrid};
 use crate::loss::{LossValue, LossWeights, PartLoss};
 use crate::observe::ViewObservation;
 use crate::optim::Free;
 use crate::part_fit::{fit_part, FitSettings, Problem};
+use crate::refit::{self, RoundInputs, RoundLighting};
 use crate::select::{select, Ranked, SelectSettings};
 use crate::targets::part_view;
 use crate::uvmap::UvTransform;
@@ -89,7 +89,7 @@ impl Progress for Silent {
 }
 
 /// How a part got its material.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PartStatus {
     /// Selected and fitted.
@@ -103,7 +103,7 @@ pub enum PartStatus {
 }
 
 /// Pixel counts of a part in its chosen view.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct PixelCounts {
     /// Labelled in the photo (M_photo).
     pub photo: usize,
@@ -115,15 +115,15 @@ pub struct PixelCounts {
 }
 
 /// Seconds spent per stage for one part.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct PartTimings {
     pub targets: f64,
     pub selection: f64,
     pub fit: f64,
 }
 
-/// The fit of one part.
-#[derive(Clone, Debug)]
+/// The fit of one part (saved whole in `result.json`, so `--refit-only` can start from it).
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PartResult {
     pub name: String,
     pub status: PartStatus,
@@ -149,6 +149,7 @@ pub struct PartResult {
 }
 
 /// Everything a fit decided.
+#[derive(Clone, Debug)]
 pub struct FitResult {
     pub parts: Vec<PartResult>,
     /// Light slot names (scene lights, then "environment") and their fitted RGB radiance.
@@ -222,12 +223,79 @@ const UNOBSERVED_ALBEDO: [f32; 3] = [0.5; 3];
 pub(crate) const DEFAULT_ROUGHNESS: f32 = 0.5;
 const HOMOGENEOUS: &str = "homogeneous";
 
+/// What `--refit-only` starts from: a previous fit's parts and radiances (its `result.json`).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct PreviousFit {
+    pub parts: Vec<PartResult>,
+    pub radiance: Vec<[f32; 3]>,
+}
+
+impl PreviousFit {
+    /// Checks that the previous fit belongs to `scene` and `library`.
+    fn check(&self, scene: &Scene, library: &Library, n_slots: usize) -> Result<(), FitError> {
+        let names: Vec<&String> = self.parts.iter().map(|p| &p.name).collect();
+        if names.len() != scene.mesh.part_names.len() || names.iter().zip(&scene.mesh.part_names).any(|(a, b)| *a != b)
+        {
+            return Err(FitError::Input(format!(
+                "the previous fit is of other parts ({}) than the scene's ({})",
+                names.iter().map(|n| n.as_str()).collect::<Vec<_>>().join(", "),
+                scene.mesh.part_names.join(", ")
+            )));
+        }
+        if self.radiance.len() != n_slots || self.radiance.iter().flatten().any(|c| !c.is_finite() || *c < 0.0) {
+            return Err(FitError::Input(format!(
+                "the previous fit has {} light radiances for the scene's {n_slots} (or a bad value)",
+                self.radiance.len()
+            )));
+        }
+        for p in &self.parts {
+            let material = library
+                .get(&p.graph)
+                .ok_or_else(|| FitError::Input(format!("part `{}`: no graph `{}` in the library", p.name, p.graph)))?;
+            if material.graph.info.default_params().len() != p.state.params.len() {
+                return Err(FitError::Input(format!(
+                    "part `{}`: the previous fit has {} parameter values for graph `{}`, which has {}",
+                    p.name,
+                    p.state.params.len(),
+                    p.graph,
+                    material.graph.info.default_params().len()
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
 /// Fits every part of `scene`. `radiances`: known light radiances (`--lights`), else they are
 /// estimated from the photos.
 pub fn fit_scene(
     scene: &Scene,
     library: &Library,
     radiances: Option<&LightRadiances>,
+    options: &FitOptions,
+    progress: &dyn Progress,
+) -> Result<FitResult, FitError> {
+    run(scene, library, radiances, None, options, progress)
+}
+
+/// The light solve and re-fit rounds only, from a previous fit (`psc fit --refit-only`): every
+/// part keeps its graph, parameters and UV transform.
+pub fn refit_scene(
+    scene: &Scene,
+    library: &Library,
+    radiances: Option<&LightRadiances>,
+    previous: &PreviousFit,
+    options: &FitOptions,
+    progress: &dyn Progress,
+) -> Result<FitResult, FitError> {
+    run(scene, library, radiances, Some(previous), options, progress)
+}
+
+fn run(
+    scene: &Scene,
+    library: &Library,
+    radiances: Option<&LightRadiances>,
+    previous: Option<&PreviousFit>,
     options: &FitOptions,
     progress: &dyn Progress,
 ) -> Result<FitResult, FitError> {
@@ -272,27 +340,38 @@ pub fn fit_scene(
     let aligned: Vec<Vec<AlignedPart>> = views.iter().enumerate().map(|(i, o)| align_view(o, i, n_parts)).collect();
     lap("observe and align", &mut timings);
 
-    // Lighting: the other parts' materials for the indirect light are their pixel medians.
-    renderer.set_materials(lighting::median_materials(&views, n_parts))?;
+    // Lighting: the other parts' materials for the indirect light are their pixel medians
+    // (or the previous fit's materials).
     let n_slots = renderer.n_slots();
-    let (radiance, light_source) = match radiances {
-        Some(r) => {
-            let mut v = r.lights.clone();
-            if n_slots > v.len() {
-                v.push(r.environment);
+    match previous {
+        Some(p) => {
+            p.check(scene, library, n_slots)?;
+            let bindings = p.parts.iter().map(|p| binding(library, &p.graph, &p.state, p.roughness_scale));
+            renderer.set_materials(bindings.collect::<Result<_, _>>()?)?;
+        }
+        None => renderer.set_materials(lighting::median_materials(&views, n_parts))?,
+    }
+    let (radiance, light_source) = match (radiances, previous) {
+        (None, Some(p)) => (p.radiance.clone(), "the previous fit's".to_string()),
+        (radiances, _) => match radiances {
+            Some(r) => {
+                let mut v = r.lights.clone();
+                if n_slots > v.len() {
+                    v.push(r.environment);
+                }
+                (v, r.source.clone())
             }
-            (v, r.source.clone())
-        }
-        None => {
-            progress.stage("estimate lights", views.len() as u64);
-            let renders = lighting::unit_renders(&renderer, &views, options.seed)?;
-            let (common, pixels) = lighting::common_radiance(&views, &renders)?;
-            progress.note(&format!(
-                "initial light estimate: one common radiance ({:.3}, {:.3}, {:.3}) from {pixels} pixels",
-                common[0], common[1], common[2]
-            ));
-            (vec![common; n_slots], format!("estimated from the photos (one common radiance, {pixels} pixels)"))
-        }
+            None => {
+                progress.stage("estimate lights", views.len() as u64);
+                let renders = lighting::unit_renders(&renderer, &views, options.seed)?;
+                let (common, pixels) = lighting::common_radiance(&views, &renders)?;
+                progress.note(&format!(
+                    "initial light estimate: one common radiance ({:.3}, {:.3}, {:.3}) from {pixels} pixels",
+                    common[0], common[1], common[2]
+                ));
+                (vec![common; n_slots], format!("estimated from the photos (one common radiance, {pixels} pixels)"))
+            }
+        },
     };
     lap("light estimate", &mut timings);
     progress.stage("light grids", views.len() as u64);
@@ -301,9 +380,14 @@ pub fn fit_scene(
         grids.iter().zip(&views).map(|(g, o)| ShadingGrid::new(g, &radiance, o.camera.position)).collect();
     lap("light grids", &mut timings);
 
-    progress.stage("fit parts", n_parts as u64);
     let mut parts = Vec::with_capacity(n_parts);
-    for part in 0..n_parts {
+    if let Some(p) = previous {
+        parts = p.parts.clone();
+    }
+    if previous.is_none() {
+        progress.stage("fit parts", n_parts as u64);
+    }
+    for part in (0..n_parts).filter(|_| previous.is_none()) {
         let name = &scene.mesh.part_names[part];
         let result =
             fit_one_part(scene, library, &homogeneous, &renderer, &views, &aligned, &shading, part as u32, options)?;
@@ -322,18 +406,11 @@ pub fn fit_scene(
         timings,
     };
     let mut shading = shading;
+    let inputs = RoundInputs { library, homogeneous: &homogeneous, views: &views, aligned: &aligned, options };
     {
-        let inputs = RoundInputs {
-            library,
-            homogeneous: &homogeneous,
-            renderer: &renderer,
-            views: &views,
-            aligned: &aligned,
-            shading: &shading,
-            options,
-        };
+        let light = RoundLighting { renderer: &renderer, shading: &shading };
         for part in result.parts.iter_mut() {
-            refit::match_whole_part(&inputs, part)?;
+            refit::match_whole_part(&inputs, &light, part)?;
         }
     }
     lap("match part means", &mut result.timings);
@@ -344,7 +421,10 @@ pub fn fit_scene(
             let solve = refit::solve_lights(&renderer, &views, options.seed ^ 0x5eed_0001 ^ round as u64)?;
             progress.advance(1);
             if solve.radiance.iter().all(|r| r.iter().all(|&c| c <= 0.0)) {
-                progress.note(&format!("round {}: the light solve found no light; keeping the previous radiances", round + 1));
+                progress.note(&format!(
+                    "round {}: the light solve found no light; keeping the previous radiances",
+                    round + 1
+                ));
                 break;
             }
             let change = relative_change(&result.radiance, &solve.radiance);
@@ -365,6 +445,14 @@ pub fn fit_scene(
                 change * 100.0
             ));
             result.radiance = solve.radiance.clone();
+            // The joint solve's albedo factors start the re-fit (which then refines them).
+            for (part, factor) in result.parts.iter_mut().zip(&solve.part_scales) {
+                if part.status != PartStatus::Unobserved {
+                    for c in 0..3 {
+                        part.state.albedo_scale[c] *= factor[c];
+                    }
+                }
+            }
             result.light_source = format!(
                 "solved per light under the fitted materials (NNLS, robust), round {} of at most {}",
                 round + 1,
@@ -377,18 +465,10 @@ pub fn fit_scene(
         shading =
             grids.iter().zip(&views).map(|(g, o)| ShadingGrid::new(g, &result.radiance, o.camera.position)).collect();
         progress.stage("re-fit albedo scale and roughness", n_parts as u64);
-        let inputs = RoundInputs {
-            library,
-            homogeneous: &homogeneous,
-            renderer: &renderer,
-            views: &views,
-            aligned: &aligned,
-            shading: &shading,
-            options,
-        };
+        let light = RoundLighting { renderer: &renderer, shading: &shading };
         for part in result.parts.iter_mut() {
-            refit::refit_appearance(&inputs, part)?;
-            refit::match_whole_part(&inputs, part)?;
+            refit::refit_appearance(&inputs, &light, part)?;
+            refit::match_whole_part(&inputs, &light, part)?;
             progress.advance(1);
         }
         lap(&format!("re-fit round {}", round + 1), &mut result.timings);
@@ -557,7 +637,11 @@ fn fit_one_part(
 }
 
 /// The homogeneous graph at linear colour `albedo` (values above 1 stay in the albedo scale).
-pub(crate) fn flat_state(homogeneous: &psc_runtime::library::Material, albedo: [f32; 3], roughness: f32) -> MaterialState {
+pub(crate) fn flat_state(
+    homogeneous: &psc_runtime::library::Material,
+    albedo: [f32; 3],
+    roughness: f32,
+) -> MaterialState {
     let info = &homogeneous.graph.info;
     let mut params = info.default_params();
     let mut albedo_scale = [1.0f32; 3];

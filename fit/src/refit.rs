@@ -24,47 +24,51 @@ use crate::part_fit::{fit_part, FitSettings, Problem};
 use crate::pipeline::{flat_colour, flat_state, FitOptions, PartResult, PartStatus};
 use crate::targets::part_view;
 
-/// Solves every emitter's radiance under the renderer's current materials (see
-/// [`light_solve`]).
+/// Solves every emitter's radiance jointly with a factor on every part's albedo, under the
+/// renderer's current materials (see [`light_solve::solve_with_part_scales`]).
 pub fn solve_lights(renderer: &Renderer, views: &[ViewObservation], seed: u64) -> Result<LightSolve, FitError> {
     let renders = lighting::unit_renders(renderer, views, seed)?;
-    light_solve::solve(views, &renders)
+    light_solve::solve_with_part_scales(views, &renders)
 }
 
-/// Everything a part's re-fit reads, shared by all parts of a round.
+/// What a part's re-fit reads that stays the same through every round.
 pub struct RoundInputs<'a> {
     pub library: &'a Library,
     pub homogeneous: &'a Material,
-    pub renderer: &'a Renderer,
     pub views: &'a [ViewObservation],
     pub aligned: &'a [Vec<AlignedPart>],
-    pub shading: &'a [ShadingGrid],
     pub options: &'a FitOptions,
 }
 
+/// What changes from round to round: the renderer's materials and the lighting.
+pub struct RoundLighting<'a> {
+    pub renderer: &'a Renderer,
+    pub shading: &'a [ShadingGrid],
+}
+
 impl RoundInputs<'_> {
-    fn aligned_part(&self, part: &PartResult) -> Option<(usize, &AlignedPart)> {
+    fn aligned_part(&self, renderer: &Renderer, part: &PartResult) -> Option<(usize, &AlignedPart)> {
         let v = part.view_index?;
-        let index = self.renderer.part_names().iter().position(|p| p == &part.name)?;
+        let index = renderer.part_names().iter().position(|p| p == &part.name)?;
         self.aligned[v].iter().find(|a| a.part as usize == index).map(|a| (v, a))
     }
 }
 
 /// Re-fits a part's albedo scale and roughness under new lighting (graph, parameters and UV
 /// transform frozen), as PhotoScene's re-fit; homogeneous parts get their colour anew.
-pub fn refit_appearance(inputs: &RoundInputs, part: &mut PartResult) -> Result<(), FitError> {
-    let Some((v, a)) = inputs.aligned_part(part) else { return Ok(()) };
+pub fn refit_appearance(inputs: &RoundInputs, light: &RoundLighting, part: &mut PartResult) -> Result<(), FitError> {
+    let Some((v, a)) = inputs.aligned_part(light.renderer, part) else { return Ok(()) };
     let (obs, options) = (&inputs.views[v], inputs.options);
-    let geometry = inputs.renderer.geometry();
+    let geometry = light.renderer.geometry();
     let mut ws = Workspace::default();
     if part.status == PartStatus::Homogeneous {
-        if let Some(view) = part_view(obs, a, geometry, &obs.camera, &inputs.shading[v], options.search_pixels, 1.0) {
+        if let Some(view) = part_view(obs, a, geometry, &obs.camera, &light.shading[v], options.search_pixels, 1.0) {
             let colour = flat_colour(inputs.homogeneous, &view, &mut ws)?;
             part.state = flat_state(inputs.homogeneous, colour, part.state.roughness);
         }
         return Ok(());
     }
-    let Some(fit_view) = part_view(obs, a, geometry, &obs.camera, &inputs.shading[v], options.fit_pixels, 1.0) else {
+    let Some(fit_view) = part_view(obs, a, geometry, &obs.camera, &light.shading[v], options.fit_pixels, 1.0) else {
         return Ok(());
     };
     let material = inputs.library.get(&part.graph).expect("fitted graphs come from the library");
@@ -88,13 +92,13 @@ const MEAN_SAMPLING: Sampling = Sampling { density: 160.0, max_per_axis: 2 };
 /// Sets the part's albedo scale so that its render matches the photo's mean sRGB colour over
 /// every usable pixel of its chosen view, and its roughness scale so that the output's
 /// roughness map has the fitted mean. Returns the relative change of the scale (max channel).
-pub fn match_whole_part(inputs: &RoundInputs, part: &mut PartResult) -> Result<f32, FitError> {
-    let Some((v, a)) = inputs.aligned_part(part) else { return Ok(0.0) };
+pub fn match_whole_part(inputs: &RoundInputs, light: &RoundLighting, part: &mut PartResult) -> Result<f32, FitError> {
+    let Some((v, a)) = inputs.aligned_part(light.renderer, part) else { return Ok(0.0) };
     if part.status == PartStatus::Unobserved {
         return Ok(0.0);
     }
     let obs = &inputs.views[v];
-    let Some(view) = part_view(obs, a, inputs.renderer.geometry(), &obs.camera, &inputs.shading[v], usize::MAX, 1.0)
+    let Some(view) = part_view(obs, a, light.renderer.geometry(), &obs.camera, &light.shading[v], usize::MAX, 1.0)
     else {
         return Ok(0.0);
     };
@@ -102,9 +106,7 @@ pub fn match_whole_part(inputs: &RoundInputs, part: &mut PartResult) -> Result<f
     let mut ws = Workspace::default();
     view.render(material, &part.state, MEAN_SAMPLING, &mut ws)?;
     let scale = view.mean_matching_albedo_scale(&part.state, &ws);
-    let change = (0..3)
-        .map(|c| (scale[c] / part.state.albedo_scale[c].max(1e-6) - 1.0).abs())
-        .fold(0.0f32, f32::max);
+    let change = (0..3).map(|c| (scale[c] / part.state.albedo_scale[c].max(1e-6) - 1.0).abs()).fold(0.0f32, f32::max);
     part.state.albedo_scale = scale;
     part.roughness_scale = roughness_scale(&part.state, &ws);
     Ok(change)

@@ -48,7 +48,7 @@ pub struct Exemplar {
 }
 
 /// A graph's standing in the vote.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct Ranked {
     pub graph: String,
     pub votes: f64,

@@ -158,9 +158,9 @@ fn window(usable: &[u32], w: usize, h: usize, max_pixels: usize) -> Vec<u32> {
         }
     }
     let most = positions.iter().map(|p| p.0).max().unwrap_or(0);
-    let (cx, cy) = usable.iter().fold((0.0f64, 0.0f64), |(sx, sy), &i| {
-        (sx + (i as usize % w - x0) as f64, sy + (i as usize / w - y0) as f64)
-    });
+    let (cx, cy) = usable
+        .iter()
+        .fold((0.0f64, 0.0f64), |(sx, sy), &i| (sx + (i as usize % w - x0) as f64, sy + (i as usize / w - y0) as f64));
     let (cx, cy) = (cx / usable.len() as f64, cy / usable.len() as f64);
     let distance = |x: usize, y: usize| {
         let (dx, dy) = (x as f64 + ww as f64 / 2.0 - cx, y as f64 + wh as f64 / 2.0 - cy);

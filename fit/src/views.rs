@@ -10,7 +10,7 @@ use crate::align::AlignedPart;
 use crate::observe::ViewObservation;
 
 /// The score of one view for one part.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub struct ViewScore {
     pub view: String,
     pub usable_pixels: usize,

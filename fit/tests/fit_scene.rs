@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use psc_fit::layer::Sampling;
 use psc_fit::output::{self, OutputOptions};
-use psc_fit::pipeline::{fit_scene, FitOptions, Silent};
+use psc_fit::pipeline::{fit_scene, refit_scene, FitOptions, Silent};
 use psc_render::scene::Scene;
 use psc_runtime::library::{default_library_root, Library};
 
@@ -127,7 +127,7 @@ fn fit_is_deterministic_across_thread_counts_and_never_reads_truth() {
 }
 
 #[test]
-fn an_existing_output_folder_is_kept_unless_forced() {
+fn an_existing_output_folder_is_kept_unless_forced_and_refit_only_starts_from_it() {
     let Some(scene_dir) = dev_scene("dev_4") else { return };
     let library = Library::load(&default_library_root()).unwrap();
     let scene = Scene::load(&scene_dir).unwrap();
@@ -150,5 +150,25 @@ fn an_existing_output_folder_is_kept_unless_forced() {
     // No temporaries left beside it.
     let leftovers: Vec<_> = std::fs::read_dir(&tmp).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(leftovers, vec![std::ffi::OsString::from("out")]);
+
+    // `--refit-only` starts from exactly what was fitted, and keeps graphs, parameters and UV.
+    let previous = output::read_previous(&tmp.join("out")).unwrap();
+    assert_eq!(
+        serde_json::to_string(&previous.parts).unwrap(),
+        serde_json::to_string(&result.parts).unwrap(),
+        "result.json's fit_state does not round-trip"
+    );
+    assert_eq!(previous.radiance, result.radiance);
+    let mut refit_options = options.clone();
+    refit_options.refit_rounds = 1;
+    let refit = refit_scene(&scene, &library, None, &previous, &refit_options, &Silent).unwrap();
+    assert_eq!(refit.light_rounds.len(), 1, "the refit solves the lights");
+    for (a, b) in refit.parts.iter().zip(&result.parts) {
+        assert_eq!((&a.graph, &a.state.params, a.state.uv), (&b.graph, &b.state.params, b.state.uv), "{}", a.name);
+    }
+    let mut wrong = previous.clone();
+    wrong.parts.pop();
+    let err = refit_scene(&scene, &library, None, &wrong, &refit_options, &Silent).unwrap_err().to_string();
+    assert!(err.contains("other parts"), "{err}");
     let _ = std::fs::remove_dir_all(&tmp);
 }

@@ -71,7 +71,16 @@ fn check_scene(name: &str, library: &Library, graph: &str, uv: UvTransform) -> V
     let shading = ShadingGrid::new(&grids[0], &radiance, views[0].camera.position);
     let obs = &views[0];
     let rendered = renderer
-        .render(&obs.camera, &RenderOptions { width: obs.camera.width, height: obs.camera.height, spp: 128, seed: 3, ..Default::default() })
+        .render(
+            &obs.camera,
+            &RenderOptions {
+                width: obs.camera.width,
+                height: obs.camera.height,
+                spp: 128,
+                seed: 3,
+                ..Default::default()
+            },
+        )
         .unwrap();
     let mut out = Vec::new();
     let mut ws = Workspace::default();
@@ -114,7 +123,10 @@ fn the_layer_predicts_the_path_tracer_part_by_part() {
     for (name, graph, uv) in cases {
         for (part, pixels, ratio) in check_scene(name, &library, graph, uv) {
             let name = format!("{name} {graph}");
-            eprintln!("{name:<22} {part:<26} {pixels:>6} px  layer / path tracer {:.3} {:.3} {:.3}", ratio[0], ratio[1], ratio[2]);
+            eprintln!(
+                "{name:<22} {part:<26} {pixels:>6} px  layer / path tracer {:.3} {:.3} {:.3}",
+                ratio[0], ratio[1], ratio[2]
+            );
             worst = ratio.iter().fold(worst, |w, r| w.max((r - 1.0).abs()));
             compared += 1;
         }

@@ -15,12 +15,14 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// The crate folders of the workspace, bottom up.
-const CRATES: [&str; 10] = ["base", "grammar", "compiler", "jit", "render", "runtime", "fit", "report", "cli", "tests"];
+const CRATES: [&str; 11] =
+    ["base", "grammar", "compiler", "jit", "render", "runtime", "fit", "export", "report", "cli", "tests"];
 
 /// The documented dependency order (each chain as ARCHITECTURE.md writes it).
-const ORDER: [&str; 3] = [
+const ORDER: [&str; 4] = [
     "base → grammar → compiler → jit → runtime → fit → cli",
     "base → render → runtime",
+    "runtime → export → cli",
     "base → render → report → cli",
 ];
 

@@ -237,7 +237,8 @@ pub struct GraphChoice {
     /// The graph's declared category (`category` in its `.psg`).
     pub category: String,
     /// `Some(matches)` for the kinds with an expected family, None for the others ("plain",
-    /// "photo", "model_texture": any family may be right).
+    /// "photo", "model_texture": any family may be right) and for parts the fit made
+    /// homogeneous for lack of pixels.
     pub matches: Option<bool>,
 }
 
@@ -254,17 +255,36 @@ pub fn expected_categories(kind: &str) -> Option<&'static [&'static str]> {
     }
 }
 
-fn graph_choices(materials: &Path, kinds: &BTreeMap<String, String>, library: &Library) -> Result<Vec<GraphChoice>, EvalError> {
+fn graph_choices(
+    materials: &Path,
+    kinds: &BTreeMap<String, String>,
+    library: &Library,
+) -> Result<Vec<GraphChoice>, EvalError> {
     let text = std::fs::read_to_string(materials).map_err(|e| EvalError(format!("{}: {e}", materials.display())))?;
     let v: serde_json::Value = serde_json::from_str(&text)
         .map_err(|e| EvalError(format!("{}:{}:{}: {e}", materials.display(), e.line(), e.column())))?;
+    // Parts the fit gave a homogeneous material for lack of pixels (result.json's status) had
+    // no choice to make: they are listed, not judged.
+    let statuses: BTreeMap<String, String> = materials
+        .parent()
+        .map(|d| d.join("result.json"))
+        .and_then(|p| std::fs::read_to_string(p).ok())
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| v.get("parts").and_then(|p| p.as_array()).cloned())
+        .unwrap_or_default()
+        .iter()
+        .filter_map(|p| Some((p.get("name")?.as_str()?.to_string(), p.get("status")?.as_str()?.to_string())))
+        .collect();
     let mut out = Vec::new();
     for (part, kind) in kinds {
-        let Some(graph) = v.pointer(&format!("/parts/{}/graph", part.replace('~', "~0").replace('/', "~1"))).and_then(|g| g.as_str()) else {
+        let Some(graph) =
+            v.pointer(&format!("/parts/{}/graph", part.replace('~', "~0").replace('/', "~1"))).and_then(|g| g.as_str())
+        else {
             continue;
         };
         let category = library.get(graph).map_or_else(|| "?".to_string(), |m| m.graph.info.category.clone());
-        let matches = expected_categories(kind).map(|cats| cats.contains(&category.as_str()));
+        let chosen = !matches!(statuses.get(part).map(String::as_str), Some("homogeneous" | "unobserved"));
+        let matches = expected_categories(kind).filter(|_| chosen).map(|cats| cats.contains(&category.as_str()));
         out.push(GraphChoice { part: part.clone(), kind: kind.clone(), graph: graph.to_string(), category, matches });
     }
     Ok(out)

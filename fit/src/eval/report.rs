@@ -122,7 +122,9 @@ impl Evaluation {
                 .fitted_lights
                 .iter()
                 .zip(&self.true_lights)
-                .map(|(f, t)| f64::from(psc_base::color::luminance(*f)) / f64::from(psc_base::color::luminance(*t)).max(1e-12))
+                .map(|(f, t)| {
+                    f64::from(psc_base::color::luminance(*f)) / f64::from(psc_base::color::luminance(*t)).max(1e-12)
+                })
                 .collect();
             let scale = (ratios.iter().map(|r| r.max(1e-12).ln()).sum::<f64>() / ratios.len() as f64).exp();
             let rel: Vec<String> = ratios.iter().map(|r| format!("{:.3}", r / scale)).collect();
