@@ -132,6 +132,21 @@ fn every_command_in_the_readme_files_works() {
                 }
                 continue;
             };
+            if args[0] == "fit" {
+                // The command as written takes minutes; that it runs at all is what is checked
+                // here (fit quality has tests of its own).
+                for (option, value) in [
+                    ("--iterations", "10"),
+                    ("--exemplars", "1"),
+                    ("--texture-size", "16"),
+                    ("--render-spp", "1"),
+                    ("--refit-rounds", "1"),
+                ] {
+                    if !args.iter().any(|a| a == option) {
+                        args.extend([option.to_string(), value.to_string()]);
+                    }
+                }
+            }
             if let Some(i) = args.iter().position(|a| a == "--spp") {
                 if args[i + 1].parse::<u32>().is_ok_and(|n| n > 2) {
                     args[i + 1] = "2".into();

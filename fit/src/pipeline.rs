@@ -448,9 +448,7 @@ fn run(
             // The joint solve's albedo factors start the re-fit (which then refines them).
             for (part, factor) in result.parts.iter_mut().zip(&solve.part_scales) {
                 if part.status != PartStatus::Unobserved {
-                    for c in 0..3 {
-                        part.state.albedo_scale[c] *= factor[c];
-                    }
+                    part.state.albedo_scale.iter_mut().zip(factor).for_each(|(s, f)| *s *= f);
                 }
             }
             result.light_source = format!(

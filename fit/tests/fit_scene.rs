@@ -89,6 +89,7 @@ fn contents(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
         match v {
             serde_json::Value::Object(m) => {
                 m.remove("timings_s");
+                m.remove("timings"); // a part's timings inside result.json's fit_state
                 m.remove("scene");
                 m.values_mut().for_each(strip);
             }
