@@ -12,9 +12,9 @@ use psc_base::output::{Replace, StagedDir};
 use psc_base::progress::Progress as _;
 use psc_export::ExportOptions;
 use psc_fit::output::{self, OutputOptions};
-use psc_runtime::assign::Assignment;
 use psc_fit::pipeline::{fit_scene, refit_scene, FitOptions, Progress};
 use psc_render::scene::{LightRadiances, Scene};
+use psc_runtime::assign::Assignment;
 use psc_runtime::library::{default_library_root, Library};
 
 use crate::progress::Drawer;
@@ -173,6 +173,9 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     } else {
         None
     };
+    progress.stage("report", 1);
+    let report_options = psc_report::ReportOptions { scene: Some(args.scene.clone()) };
+    psc_report::write_report_with(staged.path(), &report_options).map_err(|e| Failure(e.to_string()))?;
     staged.commit().map_err(|e| Failure(e.to_string()))?;
     progress.done();
     if !args.quiet {
@@ -182,6 +185,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
             started.elapsed().as_secs_f64(),
             args.out.display()
         );
+        eprintln!("report: {}", args.out.join("report.html").display());
         if let Some(summary) = &exported {
             for w in &summary.warnings {
                 eprintln!("warning: {w}");

@@ -165,7 +165,8 @@ pub fn write_into(
             "format": "photoscene-fit/1",
             "version": env!("CARGO_PKG_VERSION"),
             "command": options.command,
-            "scene": scene.root.display().to_string(),
+            // Absolute, so the folder can be rendered and reported from anywhere.
+            "scene": std::fs::canonicalize(&scene.root).unwrap_or_else(|_| scene.root.clone()).display().to_string(),
             "lights": { "source": result.light_source, "slots": result.slot_names, "radiance_rgb": result.radiance, "solve_rounds": result.light_rounds },
             // Everything `--refit-only` starts from, exactly (f32 values round-trip in JSON).
             "fit_state": PreviousFit { parts: result.parts.clone(), radiance: result.radiance.clone() },
