@@ -352,19 +352,16 @@ mod tests {
         let joint = solve_samples(&samples, true);
         let plain = solve_samples(&samples, false);
         let geo_mean = (albedo_error.iter().map(|a| a.ln()).sum::<f32>() / 3.0).exp();
+        #[allow(clippy::needless_range_loop)] // c indexes four arrays in parallel
         for c in 0..3 {
             let true_ratio = true_radiance[0][c] / true_radiance[1][c];
             let joint_ratio = joint.radiance[0][c] / joint.radiance[1][c];
             let plain_ratio = plain.radiance[0][c] / plain.radiance[1][c];
             assert!((joint_ratio / true_ratio - 1.0).abs() < 0.02, "channel {c}: {joint_ratio} vs {true_ratio}");
             assert!((plain_ratio / true_ratio - 1.0).abs() > 0.05, "the plain solve should be off: {plain_ratio}");
-            for part in 0..3 {
-                let expected = albedo_error[part] / geo_mean;
-                assert!(
-                    (joint.part_scales[part][c] / expected - 1.0).abs() < 0.02,
-                    "part {part}: {:?}",
-                    joint.part_scales
-                );
+            for (part, (error, found)) in albedo_error.iter().zip(&joint.part_scales).enumerate() {
+                let expected = error / geo_mean;
+                assert!((found[c] / expected - 1.0).abs() < 0.02, "part {part}: {:?}", joint.part_scales);
             }
         }
     }
