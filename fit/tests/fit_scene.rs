@@ -173,3 +173,39 @@ fn an_existing_output_folder_is_kept_unless_forced_and_refit_only_starts_from_it
     assert!(err.contains("other parts"), "{err}");
     let _ = std::fs::remove_dir_all(&tmp);
 }
+
+/// A scene that names no lights is fitted under the area lights the loader places on the
+/// ceiling every 3 m (as PhotoScene), and the global solve gives each of them its own radiance.
+#[test]
+fn a_scene_without_lights_is_fitted_under_generated_ceiling_lights() {
+    let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/room");
+    let tmp = std::env::temp_dir().join(format!("psc-fit-no-lights-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    copy_without_truth(&example, &tmp);
+    let manifest = tmp.join("scene.json");
+    let mut m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
+    assert!(m.as_object_mut().unwrap().remove("lights").is_some(), "the example names its lights");
+    std::fs::write(&manifest, serde_json::to_string_pretty(&m).unwrap()).unwrap();
+    let scene = Scene::load(&tmp).unwrap();
+    assert!(scene.lights_generated);
+    let (lo, hi) = scene.mesh.bounds();
+    let per_axis = |a: usize| (((hi[a] - lo[a]) / 3.0).round() as usize).max(1);
+    assert_eq!(scene.lights.len(), per_axis(0) * per_axis(2), "one light per 3 m × 3 m cell of the ceiling");
+    assert!(scene.lights.len() >= 2, "the example room is big enough for a grid, so the solve has lights to separate");
+
+    let library = Library::load(&default_library_root()).unwrap();
+    let result = fit_scene(&scene, &library, None, &small_options(), &Silent).unwrap();
+    assert_eq!(result.slot_names.len(), scene.lights.len());
+    assert!(result.slot_names.iter().all(|n| n.starts_with("auto")), "{:?}", result.slot_names);
+    assert_eq!(result.light_rounds.len(), 1, "the lights are solved");
+    let solved = &result.light_rounds[0].solve;
+    for (name, r) in result.slot_names.iter().zip(&solved.radiance) {
+        assert!(r.iter().all(|x| x.is_finite() && *x >= 0.0), "{name}: {r:?}");
+    }
+    assert!(
+        solved.radiance.iter().filter(|r| r.iter().sum::<f32>() > 0.0).count() >= 2,
+        "the photo is lit by more than one of the generated lights: {:?}",
+        solved.radiance
+    );
+    let _ = std::fs::remove_dir_all(&tmp);
+}
