@@ -12,7 +12,7 @@ use psc_base::output::{Replace, StagedDir};
 use psc_base::progress::Progress as _;
 use psc_export::ExportOptions;
 use psc_fit::output::{self, OutputOptions};
-use psc_fit::pipeline::{fit_scene, refit_scene, FitOptions, Progress};
+use psc_fit::pipeline::{fit_scene, refit_scene, resume_scene, FitOptions, Progress};
 use psc_render::scene::{LightRadiances, Scene};
 use psc_runtime::assign::Assignment;
 use psc_runtime::library::{default_library_root, Library};
@@ -33,8 +33,14 @@ pub struct Args {
     /// Start from the fit already in --out (its result.json): keep every part's graph,
     /// parameters and UV transform, and run only the light solve and the albedo/roughness
     /// re-fit rounds; --out is then replaced.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "resume")]
     refit_only: bool,
+    /// Continue the fit already in --out (its result.json): every fitted part keeps its graph
+    /// (unless --graph forces another) and its optimisation continues from the fitted state for
+    /// --iterations more, without selection or global UV search; then the light rounds run
+    /// again from the previous lights; --out is then replaced.
+    #[arg(long)]
+    resume: bool,
     /// Known light radiances (the `psc render --lights` format) instead of estimating them.
     #[arg(long)]
     lights: Option<PathBuf>,
@@ -139,8 +145,9 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     };
     // Refuse an existing --out before hours of work, not after; the folder is built aside and
     // renamed into place at the end, so an error or Ctrl-C leaves nothing half-written.
-    let previous = if args.refit_only { Some(output::read_previous(&args.out)?) } else { None };
-    let replace = if args.force || args.refit_only { Replace::Yes } else { Replace::No };
+    let from_previous = args.refit_only || args.resume;
+    let previous = if from_previous { Some(output::read_previous(&args.out)?) } else { None };
+    let replace = if args.force || from_previous { Replace::Yes } else { Replace::No };
     let staged = StagedDir::new(&args.out, replace).map_err(|e| Failure(e.to_string()))?;
     let mut options = FitOptions { seed: args.seed, ..Default::default() };
     options.forced = args.graphs.iter().cloned().collect::<BTreeMap<_, _>>();
@@ -151,13 +158,14 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     let drawer = Drawer::new(args.quiet);
     let progress = FitProgress { drawer: &drawer, open: AtomicBool::new(false) };
     let result = match &previous {
+        Some(p) if args.resume => resume_scene(&scene, &library, radiances.as_ref(), p, &options, &progress)?,
         Some(p) => refit_scene(&scene, &library, radiances.as_ref(), p, &options, &progress)?,
         None => fit_scene(&scene, &library, radiances.as_ref(), &options, &progress)?,
     };
     let output_options = OutputOptions {
         texture_size: args.texture_size,
         render_spp: args.render_spp,
-        force: args.force || args.refit_only,
+        force: args.force || from_previous,
         seed: args.seed,
         command: std::env::args().collect::<Vec<_>>().join(" "),
     };

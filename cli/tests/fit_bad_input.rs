@@ -149,3 +149,12 @@ fn an_existing_output_folder_is_refused_before_any_work() {
     assert!(stderr.contains("already exists") && stderr.contains("--force"), "{stderr}");
     assert_eq!(std::fs::read_to_string(existing.join("keep.txt")).unwrap(), "mine");
 }
+
+#[test]
+fn resume_or_refit_only_without_an_earlier_fit() {
+    let s = room("no-previous");
+    for flag in ["--resume", "--refit-only"] {
+        let err = fails(&s, &[flag]);
+        assert!(err.contains("result.json") && err.contains("earlier `psc fit`"), "{flag}: {err}");
+    }
+}

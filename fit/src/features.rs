@@ -407,6 +407,34 @@ impl FeatureLoss {
         Ok(self.loss_of_means(&means, target, None) as f32)
     }
 
+    /// The loss of a crop image against a target descriptor at the best of the descriptor's
+    /// orientation shifts: the candidate's energies rotated by every multiple of π/n (cyclic
+    /// in the orientation index, exact for rotations of a fronto-parallel pattern). For ranking
+    /// candidates whose orientation is not yet searched: a pattern that matches the photo once
+    /// turned is not penalised against an isotropic one for the turn.
+    pub fn loss_any_orientation(
+        &self,
+        image: &[[f32; 3]],
+        target: &Descriptor,
+        scratch: &mut Scratch,
+    ) -> Result<f32, FeatureError> {
+        self.check_image(image)?;
+        self.check_target(target)?;
+        let means = self.forward(image, scratch, Pass::Loss);
+        let o = self.orientations;
+        let mut turned = vec![0.0f64; means.len()];
+        let mut best = f64::INFINITY;
+        for shift in 0..o {
+            for (band, out) in means.chunks_exact(o).zip(turned.chunks_exact_mut(o)) {
+                for (j, v) in out.iter_mut().enumerate() {
+                    *v = band[(j + shift) % o];
+                }
+            }
+            best = best.min(self.loss_of_means(&turned, target, None));
+        }
+        Ok(best as f32)
+    }
+
     /// The loss and its gradient with respect to every channel of every crop pixel, written
     /// (not added) to `grad` (`width × height`; zero where the weight is 0).
     pub fn loss_and_grad(

@@ -103,6 +103,19 @@ impl PartLoss {
         self.combine(statistics, features)
     }
 
+    /// [`PartLoss::value`] with the feature term at the candidate's best orientation (see
+    /// [`FeatureLoss::loss_any_orientation`]): for ranking graphs before their UV is searched.
+    pub fn value_any_orientation(&self, image: &[[f32; 3]], scratch: &mut Scratch) -> LossValue {
+        let m = Moments::of(image, &self.weight);
+        let statistics = self.statistics(&m);
+        let features = if self.weights.features > 0.0 {
+            self.features.loss_any_orientation(image, &self.target_features, scratch).unwrap_or(f32::INFINITY)
+        } else {
+            0.0
+        };
+        self.combine(statistics, features)
+    }
+
     /// The loss and its gradient with respect to every crop pixel (written to `grad`).
     pub fn value_and_grad(&self, image: &[[f32; 3]], scratch: &mut Scratch, grad: &mut Vec<[f32; 3]>) -> LossValue {
         grad.clear();

@@ -114,12 +114,12 @@ pub fn write(
     Ok(())
 }
 
-/// Reads the state a previous fit saved in `<dir>/result.json` (for `psc fit --refit-only`).
+/// Reads the state a previous fit saved in `<dir>/result.json` (for `psc fit --resume` and `--refit-only`).
 pub fn read_previous(dir: &Path) -> Result<PreviousFit, FitError> {
     let path = dir.join("result.json");
     let text = std::fs::read_to_string(&path).map_err(|e| {
         FitError::Input(format!(
-            "{}: {e} (--refit-only starts from the output of an earlier `psc fit`)",
+            "{}: {e} (--resume and --refit-only start from the output of an earlier `psc fit`)",
             path.display()
         ))
     })?;
@@ -168,7 +168,7 @@ pub fn write_into(
             // Absolute, so the folder can be rendered and reported from anywhere.
             "scene": std::fs::canonicalize(&scene.root).unwrap_or_else(|_| scene.root.clone()).display().to_string(),
             "lights": { "source": result.light_source, "slots": result.slot_names, "radiance_rgb": result.radiance, "solve_rounds": result.light_rounds },
-            // Everything `--refit-only` starts from, exactly (f32 values round-trip in JSON).
+            // Everything `--resume` and `--refit-only` start from, exactly (f32 values round-trip in JSON).
             "fit_state": PreviousFit { parts: result.parts.clone(), radiance: result.radiance.clone() },
             "parts": result.parts.iter().map(|p| json!({"name": p.name, "status": p.status, "graph": p.graph,
                 "loss": p.loss.total, "view": p.view})).collect::<Vec<_>>(),

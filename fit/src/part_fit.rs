@@ -33,6 +33,13 @@ pub struct FitSettings {
     pub stall_change: f32,
     pub sampling: Sampling,
     pub search_sampling: Sampling,
+    /// Each start begins with a global UV search (off when the starts are fitted states).
+    #[serde(default = "yes")]
+    pub global_uv_search: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl Default for FitSettings {
@@ -47,6 +54,7 @@ impl Default for FitSettings {
             stall_change: 0.01,
             sampling: Sampling::default(),
             search_sampling: Sampling { density: 160.0, max_per_axis: 2 },
+            global_uv_search: true,
         }
     }
 }
@@ -89,7 +97,7 @@ pub fn fit_part(
     let mut runs = Vec::new();
     for start in starts.iter().take(settings.starts.max(1)) {
         let mut state = start.clone();
-        if free.uv {
+        if free.uv && settings.global_uv_search {
             let (found, n) = search::global(
                 problem.material,
                 problem.search_view,

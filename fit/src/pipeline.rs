@@ -275,7 +275,44 @@ pub fn fit_scene(
     options: &FitOptions,
     progress: &dyn Progress,
 ) -> Result<FitResult, FitError> {
-    run(scene, library, radiances, None, options, progress)
+    run(scene, library, radiances, Mode::Fit, options, progress)
+}
+
+/// Continues a previous fit (`psc fit --resume`): every part fitted before keeps its graph
+/// (unless `--graph` now forces another) and its optimisation starts from the fitted state,
+/// with no selection and no global UV search, for `options.fit.max_iterations` more
+/// iterations; the lights start from the previous fit's and the light rounds run again. Parts
+/// that were homogeneous or unobserved are fitted anew (their pixels may have changed with
+/// the labels).
+pub fn resume_scene(
+    scene: &Scene,
+    library: &Library,
+    radiances: Option<&LightRadiances>,
+    previous: &PreviousFit,
+    options: &FitOptions,
+    progress: &dyn Progress,
+) -> Result<FitResult, FitError> {
+    run(scene, library, radiances, Mode::Resume(previous), options, progress)
+}
+
+/// Where a run starts from.
+#[derive(Clone, Copy)]
+enum Mode<'a> {
+    /// From nothing: select and fit every part.
+    Fit,
+    /// From a previous fit: continue every part's optimisation, then the light rounds.
+    Resume(&'a PreviousFit),
+    /// From a previous fit: the light rounds only.
+    RefitOnly(&'a PreviousFit),
+}
+
+impl<'a> Mode<'a> {
+    fn previous(self) -> Option<&'a PreviousFit> {
+        match self {
+            Mode::Fit => None,
+            Mode::Resume(p) | Mode::RefitOnly(p) => Some(p),
+        }
+    }
 }
 
 /// The light solve and re-fit rounds only, from a previous fit (`psc fit --refit-only`): every
@@ -288,17 +325,18 @@ pub fn refit_scene(
     options: &FitOptions,
     progress: &dyn Progress,
 ) -> Result<FitResult, FitError> {
-    run(scene, library, radiances, Some(previous), options, progress)
+    run(scene, library, radiances, Mode::RefitOnly(previous), options, progress)
 }
 
 fn run(
     scene: &Scene,
     library: &Library,
     radiances: Option<&LightRadiances>,
-    previous: Option<&PreviousFit>,
+    mode: Mode,
     options: &FitOptions,
     progress: &dyn Progress,
 ) -> Result<FitResult, FitError> {
+    let previous = mode.previous();
     let mut timings = Vec::new();
     let mut clock = Instant::now();
     let mut lap = |name: &str, timings: &mut Vec<(String, f64)>| {
@@ -381,16 +419,18 @@ fn run(
     lap("light grids", &mut timings);
 
     let mut parts = Vec::with_capacity(n_parts);
-    if let Some(p) = previous {
+    let fit_parts = !matches!(mode, Mode::RefitOnly(_));
+    if let Mode::RefitOnly(p) = mode {
         parts = p.parts.clone();
     }
-    if previous.is_none() {
+    if fit_parts {
         progress.stage("fit parts", n_parts as u64);
     }
-    for part in (0..n_parts).filter(|_| previous.is_none()) {
+    for part in (0..n_parts).filter(|_| fit_parts) {
         let name = &scene.mesh.part_names[part];
-        let result =
-            fit_one_part(scene, library, &homogeneous, &renderer, &views, &aligned, &shading, part as u32, options)?;
+        let before = previous.map(|p| &p.parts[part]);
+        let inputs = PartInputs { scene, library, homogeneous: &homogeneous, renderer: &renderer, views: &views };
+        let result = fit_one_part(&inputs, &aligned, &shading, part as u32, before, options)?;
         progress.note(&summary(name, &result));
         parts.push(result);
         progress.advance(1);
@@ -496,18 +536,25 @@ fn summary(name: &str, r: &PartResult) -> String {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
+/// What every part's fit reads.
+struct PartInputs<'a> {
+    scene: &'a Scene,
+    library: &'a Library,
+    homogeneous: &'a std::sync::Arc<psc_runtime::library::Material>,
+    renderer: &'a Renderer,
+    views: &'a [ViewObservation],
+}
+
+/// Fits one part; `before`: the part in a previous fit that this one continues (`--resume`).
 fn fit_one_part(
-    scene: &Scene,
-    library: &Library,
-    homogeneous: &std::sync::Arc<psc_runtime::library::Material>,
-    renderer: &Renderer,
-    views: &[ViewObservation],
+    inputs: &PartInputs,
     aligned: &[Vec<AlignedPart>],
     shading: &[ShadingGrid],
     part: u32,
+    before: Option<&PartResult>,
     options: &FitOptions,
 ) -> Result<PartResult, FitError> {
+    let PartInputs { scene, library, homogeneous, renderer, views } = *inputs;
     let name = scene.mesh.part_names[part as usize].clone();
     let started = Instant::now();
     let mut result = PartResult {
@@ -583,9 +630,13 @@ fn fit_one_part(
     let started = Instant::now();
     let seed = psc_base::mix64(options.seed ^ (u64::from(part) << 32));
     let forced = options.forced.get(&name);
-    let selection = match forced {
-        Some(_) => None,
-        None => {
+    // A part continued from a previous fit keeps its graph unless told otherwise.
+    let continued = before.filter(|b| {
+        matches!(b.status, PartStatus::Fitted | PartStatus::Forced) && forced.is_none_or(|g| *g == b.graph)
+    });
+    let selection = match (forced, continued) {
+        (Some(_), _) | (None, Some(_)) => None,
+        (None, None) => {
             Some(select(library, &search_view, &search_loss, options.select, options.fit.search_sampling, seed, None)?)
         }
     };
@@ -594,16 +645,18 @@ fn fit_one_part(
         debug_dump(std::path::Path::new(&dir), &name, homogeneous, library, &search_view, sel, colour, options)?;
     }
     let started = Instant::now();
-    let graph_name = match (forced, &selection) {
-        (Some(g), _) => g.clone(),
-        (None, Some(s)) => s.ranking[0].graph.clone(),
-        (None, None) => unreachable!("selection runs unless the graph is forced"),
+    let graph_name = match (forced, continued, &selection) {
+        (Some(g), _, _) => g.clone(),
+        (None, Some(b), _) => b.graph.clone(),
+        (None, None, Some(s)) => s.ranking[0].graph.clone(),
+        (None, None, None) => unreachable!("selection runs unless the graph is forced or continued"),
     };
     let graph_index = library.materials.iter().position(|m| m.name() == graph_name).expect("checked above");
     let material = &library.materials[graph_index];
-    let starts: Vec<MaterialState> = match &selection {
-        Some(s) => s.exemplars_of(graph_index).take(options.fit.starts).map(|e| e.state.clone()).collect(),
-        None => vec![MaterialState {
+    let starts: Vec<MaterialState> = match (&selection, continued) {
+        (_, Some(b)) => vec![b.state.clone()],
+        (Some(s), None) => s.exemplars_of(graph_index).take(options.fit.starts).map(|e| e.state.clone()).collect(),
+        (None, None) => vec![MaterialState {
             params: material.graph.info.default_params(),
             uv: UvTransform::default(),
             albedo_scale: [1.0; 3],
@@ -617,19 +670,34 @@ fn fit_one_part(
         search_view: &search_view,
         search_loss: &search_loss,
     };
-    let fit = fit_part(&problem, &starts, &options.fit, Free::ALL)?;
+    let settings = match continued {
+        // Its UV transform was searched and refined already: a global search would throw that away.
+        Some(_) => FitSettings { starts: 1, start_iterations: 0, global_uv_search: false, ..options.fit },
+        None => options.fit,
+    };
+    let fit = fit_part(&problem, &starts, &settings, Free::ALL)?;
     // The output keeps the graph's roughness map, scaled to the fitted part-wide value.
     fit_view.render(material, &fit.state, options.fit.sampling, &mut ws)?;
     let map_mean = ws.channel_mean(psc_compiler::Channel::Roughness);
     result.roughness_scale = if map_mean > 1e-4 { (fit.state.roughness / map_mean).clamp(0.0, 50.0) } else { 1.0 };
-    result.status = if forced.is_some() { PartStatus::Forced } else { PartStatus::Fitted };
+    result.status = match continued {
+        Some(b) => b.status.clone(),
+        None if forced.is_some() => PartStatus::Forced,
+        None => PartStatus::Fitted,
+    };
     result.graph = graph_name;
-    result.top = selection.map(|s| s.ranking.into_iter().take(3).collect()).unwrap_or_default();
+    result.top = match (selection, continued) {
+        (Some(s), _) => s.ranking.into_iter().take(3).collect(),
+        (None, Some(b)) => b.top.clone(),
+        (None, None) => Vec::new(),
+    };
     result.state = fit.state;
     result.loss = fit.loss;
-    result.history = fit.history;
-    result.iterations = fit.iterations;
-    result.uv_candidates = fit.uv_candidates;
+    let (earlier_history, earlier_iterations, earlier_candidates) =
+        continued.map_or((Vec::new(), 0, 0), |b| (b.history.clone(), b.iterations, b.uv_candidates));
+    result.history = earlier_history.into_iter().chain(fit.history).collect();
+    result.iterations = earlier_iterations + fit.iterations;
+    result.uv_candidates = earlier_candidates + fit.uv_candidates;
     result.timings.fit = started.elapsed().as_secs_f64();
     Ok(result)
 }

@@ -6,7 +6,11 @@
 //! A random exemplar at a random UV scale rarely shows its graph at the photo's scale, which
 //! would make the vote about scale rather than pattern; each exemplar is therefore scored at a
 //! few log-scales spread over the search range (its best counts), with a random rotation and
-//! offset. k scales with the library: 21 for PhotoScene's 71 graphs.
+//! offset. The feature term is taken at the exemplar's best orientation (a cyclic shift of the
+//! descriptor's orientation bands, no extra render): the random rotation would otherwise favour
+//! isotropic graphs, which match at any turn, over oriented ones (planks, stripes), which the
+//! fit's UV search would turn into place. k scales with the library: 21 for PhotoScene's 71
+//! graphs.
 
 use psc_base::{mix64, SplitMix64};
 use psc_runtime::library::{Library, Material};
@@ -115,7 +119,7 @@ pub fn select(
                     view.render(material, &state, sampling, ws)?;
                     let albedo_scale = view.matched_albedo_scale(&state, ws);
                     view.rescale(&state, albedo_scale, ws);
-                    let value = loss.value(&ws.image, scratch).total;
+                    let value = loss.value_any_orientation(&ws.image, scratch).total;
                     let value = if value.is_finite() { value } else { f32::INFINITY };
                     if best.as_ref().is_none_or(|b| value < b.0) {
                         best = Some((value, MaterialState { albedo_scale, ..state.clone() }));

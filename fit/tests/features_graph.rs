@@ -125,3 +125,36 @@ fn library_graph_landscapes_have_their_minimum_at_the_truth() {
         assert!(at_truth * 5.0 < sorted[sorted.len() / 2], "{name}: loss at the truth {at_truth} is not distinctive");
     }
 }
+
+/// Selection ranks graphs before their UV is searched, with the loss at the candidate's best
+/// orientation: a plank floor turned by a multiple of the descriptor's orientation step (180°/6)
+/// scores far better than the plain loss, which sees the turn (not as well as unturned: the
+/// pixel grid, the pyramid and the elliptic mask are not rotation-invariant); and the minimum
+/// over turns is never above the plain loss.
+#[test]
+fn the_any_orientation_loss_forgives_a_turn_the_plain_loss_sees() {
+    let library = Library::load(&default_library_root()).expect("the graph library compiles");
+    let region = ellipse();
+    let config = FeatureConfig::default();
+    let loss = FeatureLoss::new(&config, &region).unwrap();
+    let step = 180.0 / config.orientations as f32;
+    let material = library.get("oak_planks").unwrap();
+    let params = material.graph.info.default_params();
+    let (mut s, mut cols) = (Scratch::default(), Vec::new());
+    let truth = Transform { rot_deg: 30.0, log_scale: 0.5, shift: [0.1, 0.2] };
+    let target = loss.describe(&render(material, &params, truth, &mut cols), &mut s).unwrap();
+    let at = |rot_deg: f32, s: &mut Scratch, cols: &mut Vec<Vec<f32>>| {
+        let image = render(material, &params, Transform { rot_deg, shift: [0.47, 0.71], ..truth }, cols);
+        (loss.loss(&image, &target, s).unwrap(), loss.loss_any_orientation(&image, &target, s).unwrap())
+    };
+    let (aligned, aligned_any) = at(truth.rot_deg, &mut s, &mut cols);
+    println!("aligned: plain {aligned:.3e}, any orientation {aligned_any:.3e}");
+    assert!(aligned_any <= aligned);
+    for k in [1.0f32, 2.0, 3.0] {
+        let (plain, any) = at(truth.rot_deg + k * step, &mut s, &mut cols);
+        println!("turned by {:>3.0}°: plain {plain:.3e}, any orientation {any:.3e}", k * step);
+        assert!(any <= plain);
+        assert!(plain > 5.0 * aligned, "the plain loss sees a turn of {}°", k * step);
+        assert!(any * 5.0 < plain, "a turn of {}° is mostly forgiven: {any} against {plain}", k * step);
+    }
+}

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use psc_fit::layer::Sampling;
 use psc_fit::output::{self, OutputOptions};
-use psc_fit::pipeline::{fit_scene, refit_scene, FitOptions, Silent};
+use psc_fit::pipeline::{fit_scene, refit_scene, resume_scene, FitOptions, PartStatus, Silent};
 use psc_render::scene::Scene;
 use psc_runtime::library::{default_library_root, Library};
 
@@ -207,5 +207,60 @@ fn a_scene_without_lights_is_fitted_under_generated_ceiling_lights() {
         "the photo is lit by more than one of the generated lights: {:?}",
         solved.radiance
     );
+    let _ = std::fs::remove_dir_all(&tmp);
+}
+
+/// `--resume` continues a fit: every fitted part keeps its graph (unless `--graph` now forces
+/// another) and its optimisation goes on from the fitted state, so the parts' losses fall.
+#[test]
+fn resume_continues_every_part_from_its_fitted_state() {
+    let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/room");
+    let library = Library::load(&default_library_root()).unwrap();
+    let scene = Scene::load(&example).unwrap();
+    let tmp = std::env::temp_dir().join(format!("psc-fit-resume-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    // No light rounds, in either: the losses are then of the part fits under the same lights.
+    let options = FitOptions { refit_rounds: 0, ..small_options() };
+    let first = fit_scene(&scene, &library, None, &options, &Silent).unwrap();
+    let opts = OutputOptions { texture_size: 0, render_spp: 0, force: true, seed: 7, command: "test".into() };
+    output::write(&tmp, &scene, &library, &first, &opts).unwrap();
+    let previous = output::read_previous(&tmp).unwrap();
+
+    let fitted = |r: &psc_fit::pipeline::FitResult| -> Vec<(String, String, f32)> {
+        r.parts
+            .iter()
+            .filter(|p| p.status == PartStatus::Fitted)
+            .map(|p| (p.name.clone(), p.graph.clone(), p.loss.total))
+            .collect()
+    };
+    let mut resume_options = options.clone();
+    resume_options.fit.max_iterations = 48;
+    let resumed = resume_scene(&scene, &library, None, &previous, &resume_options, &Silent).unwrap();
+    let (before, after) = (fitted(&first), fitted(&resumed));
+    assert!(before.len() >= 3, "the example has textured parts: {before:?}");
+    assert_eq!(
+        before.iter().map(|p| (&p.0, &p.1)).collect::<Vec<_>>(),
+        after.iter().map(|p| (&p.0, &p.1)).collect::<Vec<_>>(),
+        "every fitted part keeps its graph"
+    );
+    for (a, b) in first.parts.iter().zip(&resumed.parts).filter(|(a, _)| a.status == PartStatus::Fitted) {
+        assert!(b.history.starts_with(&a.history), "{}: the history goes on from the previous one", a.name);
+        assert!(b.iterations > a.iterations, "{}", a.name);
+        assert_eq!(
+            b.top.iter().map(|t| &t.graph).collect::<Vec<_>>(),
+            a.top.iter().map(|t| &t.graph).collect::<Vec<_>>()
+        );
+    }
+    let total = |v: &[(String, String, f32)]| v.iter().map(|p| p.2).sum::<f32>();
+    println!("summed loss of the fitted parts: {:.4} → {:.4} after resuming", total(&before), total(&after));
+    assert!(total(&after) < total(&before), "{before:?} → {after:?}");
+
+    // A part forced to another graph is fitted anew with it.
+    let (name, graph, _) = &before[0];
+    let other = if graph == "plaster" { "oak_planks" } else { "plaster" };
+    resume_options.forced.insert(name.clone(), other.to_string());
+    let forced = resume_scene(&scene, &library, None, &previous, &resume_options, &Silent).unwrap();
+    let part = forced.parts.iter().find(|p| &p.name == name).unwrap();
+    assert_eq!((&part.graph, &part.status), (&other.to_string(), &PartStatus::Forced));
     let _ = std::fs::remove_dir_all(&tmp);
 }
