@@ -159,6 +159,10 @@ pub struct FitResult {
     pub light_source: String,
     /// The global light solves of the re-fit rounds, in order (none with `--lights`).
     pub light_rounds: Vec<LightRound>,
+    /// Per view (scene order), its RGB exposure: the factor between a render of the fitted
+    /// scene and that view's photo. The last light solve's (1 for a single view, and until the
+    /// first solve); with `--lights`, the previous fit's or 1.
+    pub exposure: Vec<[f32; 3]>,
     /// (stage, seconds) in order.
     pub timings: Vec<(String, f64)>,
 }
@@ -223,14 +227,23 @@ const UNOBSERVED_ALBEDO: [f32; 3] = [0.5; 3];
 pub(crate) const DEFAULT_ROUGHNESS: f32 = 0.5;
 const HOMOGENEOUS: &str = "homogeneous";
 
-/// What `--refit-only` starts from: a previous fit's parts and radiances (its `result.json`).
+/// What `--refit-only` starts from: a previous fit's parts, radiances and per-view exposures
+/// (its `result.json`).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PreviousFit {
     pub parts: Vec<PartResult>,
     pub radiance: Vec<[f32; 3]>,
+    /// One per view in scene order; empty (every view at 1) in fits made before exposures.
+    #[serde(default)]
+    pub exposure: Vec<[f32; 3]>,
 }
 
 impl PreviousFit {
+    /// The exposure of every view of a scene with `n_views` views (1 where none was saved).
+    fn exposures(&self, n_views: usize) -> Vec<[f32; 3]> {
+        (0..n_views).map(|v| self.exposure.get(v).copied().unwrap_or([1.0; 3])).collect()
+    }
+
     /// Checks that the previous fit belongs to `scene` and `library`.
     fn check(&self, scene: &Scene, library: &Library, n_slots: usize) -> Result<(), FitError> {
         let names: Vec<&String> = self.parts.iter().map(|p| &p.name).collect();
@@ -246,6 +259,14 @@ impl PreviousFit {
             return Err(FitError::Input(format!(
                 "the previous fit has {} light radiances for the scene's {n_slots} (or a bad value)",
                 self.radiance.len()
+            )));
+        }
+        let n_views = scene.views.len();
+        let bad_exposure = self.exposure.iter().flatten().any(|e| !e.is_finite() || *e <= 0.0);
+        if (!self.exposure.is_empty() && self.exposure.len() != n_views) || bad_exposure {
+            return Err(FitError::Input(format!(
+                "the previous fit has {} view exposures for the scene's {n_views} views (or one not finite and positive)",
+                self.exposure.len()
             )));
         }
         for p in &self.parts {
@@ -403,12 +424,13 @@ fn run(
         radiance,
         light_source,
         light_rounds: Vec::new(),
+        exposure: previous.map_or_else(|| vec![[1.0; 3]; views.len()], |p| p.exposures(views.len())),
         timings,
     };
     let mut shading = shading;
     let inputs = RoundInputs { library, homogeneous: &homogeneous, views: &views, aligned: &aligned, options };
     {
-        let light = RoundLighting { renderer: &renderer, shading: &shading };
+        let light = RoundLighting { renderer: &renderer, shading: &shading, exposure: &result.exposure };
         for part in result.parts.iter_mut() {
             refit::match_whole_part(&inputs, &light, part)?;
         }
@@ -428,23 +450,25 @@ fn run(
                 break;
             }
             let change = relative_change(&result.radiance, &solve.radiance);
+            let lights: Vec<String> = result
+                .slot_names
+                .iter()
+                .zip(&solve.radiance)
+                .zip(&solve.share)
+                .map(|((n, r), s)| format!("{n} ({:.1}, {:.1}, {:.1}) carries {:.0}%", r[0], r[1], r[2], s * 100.0))
+                .collect();
             progress.note(&format!(
-                "round {}: lights solved from {} pixels (relative rms {:.3}, {:.0}% outliers): {}; change {:.1}%",
+                "round {}: lights solved from {} pixels (relative rms {:.3}, {:.0}% outliers): {}; change {:.1}%{}",
                 round + 1,
                 solve.pixels,
                 solve.relative_rms[1],
                 solve.outliers * 100.0,
-                result
-                    .slot_names
-                    .iter()
-                    .zip(&solve.radiance)
-                    .zip(&solve.share)
-                    .map(|((n, r), s)| format!("{n} ({:.1}, {:.1}, {:.1}) carries {:.0}%", r[0], r[1], r[2], s * 100.0))
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                change * 100.0
+                lights.join(", "),
+                change * 100.0,
+                exposure_note(&views, &solve.exposure)
             ));
             result.radiance = solve.radiance.clone();
+            result.exposure = solve.exposure.clone();
             // The joint solve's albedo factors start the re-fit (which then refines them).
             for (part, factor) in result.parts.iter_mut().zip(&solve.part_scales) {
                 if part.status != PartStatus::Unobserved {
@@ -463,7 +487,7 @@ fn run(
         shading =
             grids.iter().zip(&views).map(|(g, o)| ShadingGrid::new(g, &result.radiance, o.camera.position)).collect();
         progress.stage("re-fit albedo scale and roughness", n_parts as u64);
-        let light = RoundLighting { renderer: &renderer, shading: &shading };
+        let light = RoundLighting { renderer: &renderer, shading: &shading, exposure: &result.exposure };
         for part in result.parts.iter_mut() {
             refit::refit_appearance(&inputs, &light, part)?;
             refit::match_whole_part(&inputs, &light, part)?;
@@ -477,6 +501,20 @@ fn run(
         }
     }
     Ok(result)
+}
+
+/// "; exposures view0 (r, g, b), …" for a solve of several views, else nothing (a single view's
+/// exposure is 1 by definition).
+fn exposure_note(views: &[ViewObservation], exposure: &[[f32; 3]]) -> String {
+    if views.len() < 2 {
+        return String::new();
+    }
+    let list: Vec<String> = views
+        .iter()
+        .zip(exposure)
+        .map(|(v, e)| format!("{} ({:.3}, {:.3}, {:.3})", v.name, e[0], e[1], e[2]))
+        .collect();
+    format!("; exposures {}", list.join(", "))
 }
 
 fn summary(name: &str, r: &PartResult) -> String {
@@ -535,7 +573,9 @@ fn fit_one_part(
     for (v, list) in aligned.iter().enumerate() {
         let Some(a) = list.iter().find(|a| a.part == part && !a.usable.is_empty()) else { continue };
         let obs = &views[v];
-        let Some(view) = part_view(obs, a, renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, 1.0)
+        // Before the first light solve: every view at exposure 1.
+        let Some(view) =
+            part_view(obs, a, renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, [1.0; 3])
         else {
             continue;
         };
@@ -572,7 +612,7 @@ fn fit_one_part(
         return Ok(result);
     }
     let fit_view =
-        part_view(obs, chosen, renderer.geometry(), &obs.camera, &shading[chosen.view], options.fit_pixels, 1.0)
+        part_view(obs, chosen, renderer.geometry(), &obs.camera, &shading[chosen.view], options.fit_pixels, [1.0; 3])
             .expect("the search view of the same pixels exists");
     result.pixels.fitted = fit_view.pixels.len();
     let mut scratch = Scratch::default();
