@@ -21,7 +21,7 @@ pub enum GeometryArg {
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The fit's output folder (materials.json, lights.json).
+    /// The fit's output folder (materials.json, lights.json; result.json for the views' exposures).
     out: PathBuf,
     /// The scene folder, with truth/.
     scene: PathBuf,

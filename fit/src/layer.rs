@@ -8,7 +8,7 @@
 //! samples of the part in one batch through its JIT kernel, rotates the tangent-space normal
 //! into the pixel's frame the way the renderer does, shades it against the pixel's light grid
 //! ([`crate::shading`]), averages the samples' linear values and encodes the average as sRGB of
-//! `clamp(e·I, 0, 1)` with the view's exposure `e`. The graph's own roughness map is replaced by
+//! `clamp(e·I, 0, 1)` with the view's RGB exposure `e` (per channel). The graph's own roughness map is replaced by
 //! the part-wide value while fitting (as PhotoScene); its metallic channel is not used (the
 //! BRDF is dielectric).
 //!
@@ -68,7 +68,9 @@ pub struct PartView {
     pub target: Vec<[f32; 3]>,
     /// The photo's linear values, per crop pixel.
     pub target_linear: Vec<[f32; 3]>,
-    pub exposure: f32,
+    /// The view's RGB exposure: the factor per channel between a linear render and the photo
+    /// (the light solve's, 1 before it).
+    pub exposure: [f32; 3],
 }
 
 /// How densely the layer samples a pixel's footprint.
@@ -140,6 +142,12 @@ impl PartView {
         self.weight.iter().sum()
     }
 
+    /// A linear render value as the photo shows it: sRGB of the exposed value, clamped.
+    #[inline]
+    fn encode(&self, linear: [f32; 3]) -> [f32; 3] {
+        [0, 1, 2].map(|c| linear_to_srgb(self.exposure[c] * linear[c]))
+    }
+
     /// Renders `state` into `ws.image` (and `ws.linear`).
     pub fn render(
         &self,
@@ -178,7 +186,7 @@ impl PartView {
         ws.image.clear();
         ws.image.resize(self.width * self.height, [0.0; 3]);
         for (px, l) in self.pixels.iter().zip(&linear) {
-            ws.image[px.crop_index as usize] = l.map(|x| linear_to_srgb(self.exposure * x));
+            ws.image[px.crop_index as usize] = self.encode(*l);
         }
         ws.linear = linear;
         Ok(())
@@ -225,9 +233,9 @@ impl PartView {
                 for (q, px) in pixels.iter().enumerate() {
                     let p = chunk * PIXEL_CHUNK + q;
                     let d_lin: [f32; 3] = [0, 1, 2].map(|c| {
-                        let x = exposure * linear[p][c];
+                        let x = exposure[c] * linear[p][c];
                         if x > 0.0 && x < 1.0 {
-                            d_image[px.crop_index as usize][c] * srgb_slope(x) * exposure
+                            d_image[px.crop_index as usize][c] * srgb_slope(x) * exposure[c]
                         } else {
                             0.0
                         }
@@ -335,7 +343,7 @@ impl PartView {
             }
             let t = self.target_linear[px.crop_index as usize];
             for c in 0..3 {
-                photo[c].push(t[c] / self.exposure);
+                photo[c].push(t[c] / self.exposure[c]);
                 render[c].push(l[c]);
             }
         }
@@ -390,7 +398,7 @@ impl PartView {
             let mean_at = |s: f32| -> f64 {
                 terms
                     .iter()
-                    .map(|(w, d, sp)| f64::from(*w) * f64::from(linear_to_srgb(self.exposure * (s * d[c] + sp[c]))))
+                    .map(|(w, d, sp)| f64::from(*w) * f64::from(linear_to_srgb(self.exposure[c] * (s * d[c] + sp[c]))))
                     .sum::<f64>()
                     / total
             };
@@ -422,7 +430,7 @@ impl PartView {
                 let diffuse = if state.albedo_scale[c] > 0.0 { (l[c] - spec[c]) / state.albedo_scale[c] } else { 0.0 };
                 l[c] = scale[c] * diffuse + spec[c];
             }
-            ws.image[px.crop_index as usize] = l.map(|x| linear_to_srgb(self.exposure * x));
+            ws.image[px.crop_index as usize] = self.encode(*l);
         }
     }
 

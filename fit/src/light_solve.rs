@@ -9,6 +9,14 @@
 //! not "solve, then drop negatives"), and the weights are iteratively re-weighted with a Cauchy
 //! loss on the relative residual, so that the pixels a misaligned model gets wrong do not
 //! dominate.
+//!
+//! The joint solve ([`solve_with_part_scales`]) models a pixel p of view v as
+//! `e_v · s_part(p) · Σ_k R_k I_k(p)`: besides the radiances, an RGB factor `s` on every part's
+//! albedo and an RGB exposure `e_v` per view (the photos of a room need not share one camera
+//! exposure), each a closed-form weighted least-squares update in the alternation, with the
+//! pixel-weighted geometric means of the part factors and of the exposures pinned to 1 per
+//! channel so that the absolute scale stays in the radiances. With a single view the exposure
+//! is the global scale itself and is not fitted: it is exactly `[1, 1, 1]`.
 
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
@@ -31,10 +39,28 @@ pub struct LightSolve {
     /// Per part (model order), the RGB factor on its albedo that the joint solve found (1 for
     /// parts with no solve pixels); their pixel-weighted geometric mean is 1 per channel.
     pub part_scales: Vec<[f32; 3]>,
+    /// Per view (in the order of the solve's views), the RGB exposure the joint solve found: the
+    /// factor on that view's model values. Their geometric mean weighted by each view's solve
+    /// pixels is 1 per channel; every view's is exactly `[1, 1, 1]` when fewer than two views
+    /// have solve pixels, and in the plain solve.
+    #[serde(default)]
+    pub exposure: Vec<[f32; 3]>,
 }
 
-/// Alternations of (radiances by NNLS, robust weights, part scales).
+/// Alternations of (radiances by NNLS, robust weights, part factors and exposures).
 const ROUNDS: usize = 16;
+
+/// Sweeps of (part factors, exposures) per alternation when both are fitted: the two are
+/// coupled through the parts every view shares, and a sweep costs no more than a pass over
+/// the pixels (the radiances' normal equations cost `slots` times more).
+const SWEEPS: usize = 4;
+
+/// What a solve fits besides the radiances.
+#[derive(Clone, Copy, Debug)]
+struct Unknowns {
+    part_scales: bool,
+    exposure: bool,
+}
 
 /// Pixels every view contributes: label agrees with the model, not clipped, not on an edge.
 fn usable_pixels(obs: &ViewObservation) -> Vec<usize> {
@@ -50,35 +76,46 @@ fn usable_pixels(obs: &ViewObservation) -> Vec<usize> {
 /// Solves the radiances from `renders[view][slot]` (unit-radiance images at the views' sizes)
 /// with the materials they were rendered with held fixed.
 pub fn solve(views: &[ViewObservation], renders: &[Vec<Vec<[f32; 3]>>]) -> Result<LightSolve, FitError> {
-    solve_impl(views, renders, false)
+    solve_impl(views, renders, Unknowns { part_scales: false, exposure: false })
 }
 
-/// Solves the radiances and, jointly, a factor on every part's albedo: a pixel's model value
-/// is `s_part · Σ_k R_k I_k(p)`, minimised by alternating NNLS for `R` with a closed-form
-/// weighted least-squares `s` per part (bilinear, so the factors' overall scale is fixed by
-/// their geometric mean). Against re-rendering after every change of the albedos this is
-/// exact for the direct light and first order for the indirect light, and costs no rendering:
-/// the re-fit rounds then only refine what the cached renders could not see.
+/// Solves the radiances and, jointly, a factor on every part's albedo and an exposure per view:
+/// a pixel's model value is `e_view · s_part · Σ_k R_k I_k(p)`, minimised by alternating NNLS
+/// for `R` with closed-form weighted least-squares `s` per part and `e` per view (trilinear, so
+/// the factors' and the exposures' overall scales are fixed by their geometric means). Against
+/// re-rendering after every change of the albedos this is exact for the direct light and first
+/// order for the indirect light, and costs no rendering: the re-fit rounds then only refine
+/// what the cached renders could not see.
 pub fn solve_with_part_scales(
     views: &[ViewObservation],
     renders: &[Vec<Vec<[f32; 3]>>],
 ) -> Result<LightSolve, FitError> {
-    solve_impl(views, renders, true)
+    solve_impl(views, renders, Unknowns { part_scales: true, exposure: true })
 }
 
 fn solve_impl(
     views: &[ViewObservation],
     renders: &[Vec<Vec<[f32; 3]>>],
-    fit_scales: bool,
+    unknowns: Unknowns,
 ) -> Result<LightSolve, FitError> {
     let slots = renders.first().map_or(0, |r| r.len());
     if slots == 0 {
         return Err(FitError::Input("the scene has no lights to solve for".into()));
     }
-    let mut samples = Samples { slots, ..Samples::default() };
-    for (obs, slot_images) in views.iter().zip(renders) {
+    if renders.len() != views.len() || renders.iter().any(|r| r.len() != slots) {
+        return Err(FitError::Input(format!(
+            "the light solve has renders of {} views for {} views, or a different number of lights per view",
+            renders.len(),
+            views.len()
+        )));
+    }
+    let mut samples = Samples { slots, n_views: views.len(), ..Samples::default() };
+    for (v, (obs, slot_images)) in views.iter().zip(renders).enumerate() {
+        if slot_images.iter().any(|img| img.len() != obs.pixels()) {
+            return Err(FitError::Input(format!("view {}: a light's render is not the photo's size", obs.name)));
+        }
         for i in usable_pixels(obs) {
-            samples.push(obs.photo.linear[i], obs.geo.part[i] as usize, slot_images.iter().map(|img| img[i]));
+            samples.push(obs.photo.linear[i], obs.geo.part[i] as usize, v, slot_images.iter().map(|img| img[i]));
         }
     }
     if samples.photo.len() < 100 {
@@ -87,42 +124,81 @@ fn solve_impl(
             samples.photo.len()
         )));
     }
-    Ok(solve_samples(&samples, fit_scales))
+    Ok(solve_samples(&samples, unknowns))
 }
 
-/// The solve's pixels: photo value, part, and the unit-radiance render of every slot.
+/// The solve's pixels: photo value, part, view, and the unit-radiance render of every slot.
 #[derive(Default)]
 struct Samples {
     slots: usize,
     n_parts: usize,
+    n_views: usize,
     photo: Vec<[f32; 3]>,
     part_of: Vec<usize>,
+    view_of: Vec<usize>,
     /// Pixel-major, `slots` entries per pixel.
     unit: Vec<[f32; 3]>,
 }
 
 impl Samples {
-    fn push(&mut self, photo: [f32; 3], part: usize, unit: impl Iterator<Item = [f32; 3]>) {
+    fn push(&mut self, photo: [f32; 3], part: usize, view: usize, unit: impl Iterator<Item = [f32; 3]>) {
         self.photo.push(photo);
         self.part_of.push(part);
+        self.view_of.push(view);
         self.n_parts = self.n_parts.max(part + 1);
+        self.n_views = self.n_views.max(view + 1);
         self.unit.extend(unit);
     }
 }
 
-fn solve_samples(samples: &Samples, fit_scales: bool) -> LightSolve {
-    let Samples { slots, n_parts, photo, part_of, unit } = samples;
-    let (slots, n_parts, n) = (*slots, *n_parts, photo.len());
+/// Per group (part or view), the factor `f` minimising `Σ_p w_p (b_p − f·x_p)²` over the
+/// group's pixels (kept where the group has no signal), then all divided by their geometric
+/// mean weighted by the groups' pixel counts: the bilinear model fixes only their product with
+/// the rest.
+fn update_factors(group_of: &[usize], weight: &[f64], photo: &[f64], x: &[f64], factors: &mut [f64]) {
+    let n = factors.len();
+    let (mut num, mut den, mut count) = (vec![0.0f64; n], vec![0.0f64; n], vec![0usize; n]);
+    for (p, &g) in group_of.iter().enumerate() {
+        num[g] += weight[p] * photo[p] * x[p];
+        den[g] += weight[p] * x[p] * x[p];
+        count[g] += 1;
+    }
+    for g in 0..n {
+        if den[g] > 1e-30 && num[g] > 0.0 {
+            factors[g] = num[g] / den[g];
+        }
+    }
+    let counted: f64 = count.iter().map(|&k| k as f64).sum();
+    if counted > 0.0 {
+        let log_mean = (0..n).map(|g| count[g] as f64 * factors[g].ln()).sum::<f64>() / counted;
+        let norm = log_mean.exp();
+        factors.iter_mut().for_each(|f| *f /= norm);
+    }
+}
+
+fn solve_samples(samples: &Samples, unknowns: Unknowns) -> LightSolve {
+    let Samples { slots, n_parts, n_views, photo, part_of, view_of, unit } = samples;
+    let (slots, n_parts, n_views, n) = (*slots, *n_parts, *n_views, photo.len());
+    let fit_scales = unknowns.part_scales;
+    // One view's exposure is the global scale, which the radiances carry.
+    let mut seen = vec![false; n_views];
+    view_of.iter().for_each(|&v| seen[v] = true);
+    let fit_exposure = unknowns.exposure && seen.iter().filter(|&&s| s).count() >= 2;
+    let sweeps = if fit_scales && fit_exposure { SWEEPS } else { 1 };
     let mut radiance = vec![[0.0f32; 3]; slots];
     let mut part_scales = vec![[1.0f32; 3]; n_parts];
+    let mut exposure = vec![[1.0f32; 3]; n_views];
     let mut rms = [0.0f32; 3];
     let mut outliers = 0usize;
     for c in 0..3 {
+        let b: Vec<f64> = photo.iter().map(|p| f64::from(p[c])).collect();
         let mut weight = vec![1.0f64; n];
         let mut scale = vec![1.0f64; n_parts];
+        let mut exp_v = vec![1.0f64; n_views];
+        let mut factor = vec![1.0f64; n];
         let mut x = vec![0.0f64; slots];
         for _ in 0..ROUNDS {
-            let (g, h) = normal_equations(samples, c, &weight, &scale);
+            let (g, h) = normal_equations(samples, c, &weight, &factor);
             x = nnls(&g, &h);
             let model: Vec<f64> = (0..n)
                 .map(|p| {
@@ -131,12 +207,7 @@ fn solve_samples(samples: &Samples, fit_scales: bool) -> LightSolve {
                 })
                 .collect();
             // Cauchy weights on the relative residual, scaled by its median absolute deviation.
-            let residual: Vec<f64> = (0..n)
-                .map(|p| {
-                    let b = f64::from(photo[p][c]);
-                    (b - scale[part_of[p]] * model[p]) / b.max(0.02)
-                })
-                .collect();
+            let residual: Vec<f64> = (0..n).map(|p| (b[p] - factor[p] * model[p]) / b[p].max(0.02)).collect();
             let mut abs: Vec<f64> = residual.iter().map(|r| r.abs()).collect();
             let mid = abs.len() / 2;
             let mad = *abs.select_nth_unstable_by(mid, f64::total_cmp).1;
@@ -149,30 +220,21 @@ fn solve_samples(samples: &Samples, fit_scales: bool) -> LightSolve {
             if c == 1 {
                 outliers = weight.iter().filter(|&&w| w < 0.5).count();
             }
-            if fit_scales {
-                let (mut num, mut den, mut count) =
-                    (vec![0.0f64; n_parts], vec![0.0f64; n_parts], vec![0usize; n_parts]);
-                for p in 0..n {
-                    let g = part_of[p];
-                    num[g] += weight[p] * f64::from(photo[p][c]) * model[p];
-                    den[g] += weight[p] * model[p] * model[p];
-                    count[g] += 1;
+            for _ in 0..sweeps {
+                if fit_scales {
+                    let exposed: Vec<f64> = (0..n).map(|p| exp_v[view_of[p]] * model[p]).collect();
+                    update_factors(part_of, &weight, &b, &exposed, &mut scale);
                 }
-                for g in 0..n_parts {
-                    if den[g] > 1e-30 && num[g] > 0.0 {
-                        scale[g] = num[g] / den[g];
-                    }
+                if fit_exposure {
+                    let scaled: Vec<f64> = (0..n).map(|p| scale[part_of[p]] * model[p]).collect();
+                    update_factors(view_of, &weight, &b, &scaled, &mut exp_v);
                 }
-                // The product s·R is what the photos fix: pin the scales' geometric mean to 1.
-                let counted: f64 = count.iter().map(|&k| k as f64).sum();
-                let log_mean = (0..n_parts).map(|g| count[g] as f64 * scale[g].ln()).sum::<f64>() / counted;
-                let norm = log_mean.exp();
-                scale.iter_mut().for_each(|s| *s /= norm);
             }
+            factor = (0..n).map(|p| scale[part_of[p]] * exp_v[view_of[p]]).collect();
         }
-        // The scales of the last round go with a final solve of the radiances.
-        if fit_scales {
-            let (g, h) = normal_equations(samples, c, &weight, &scale);
+        // The factors of the last round go with a final solve of the radiances.
+        if fit_scales || fit_exposure {
+            let (g, h) = normal_equations(samples, c, &weight, &factor);
             x = nnls(&g, &h);
         }
         for (r, v) in radiance.iter_mut().zip(&x) {
@@ -180,6 +242,9 @@ fn solve_samples(samples: &Samples, fit_scales: bool) -> LightSolve {
         }
         for (s, v) in part_scales.iter_mut().zip(&scale) {
             s[c] = *v as f32;
+        }
+        for (e, v) in exposure.iter_mut().zip(&exp_v) {
+            e[c] = *v as f32;
         }
     }
     // Each slot's share of the light on the solve's pixels.
@@ -198,18 +263,19 @@ fn solve_samples(samples: &Samples, fit_scales: bool) -> LightSolve {
         relative_rms: rms,
         outliers: outliers as f32 / n as f32,
         part_scales,
+        exposure,
     }
 }
 
 /// `G = AᵀWA`, `h = AᵀWb` of channel `c`, where row p of A is pixel p's unit renders times its
-/// part's scale.
-fn normal_equations(samples: &Samples, c: usize, weight: &[f64], scale: &[f64]) -> (DMatrix<f64>, DVector<f64>) {
+/// factor (its part's scale times its view's exposure).
+fn normal_equations(samples: &Samples, c: usize, weight: &[f64], factor: &[f64]) -> (DMatrix<f64>, DVector<f64>) {
     let slots = samples.slots;
     let mut g = DMatrix::<f64>::zeros(slots, slots);
     let mut h = DVector::<f64>::zeros(slots);
     for (p, photo) in samples.photo.iter().enumerate() {
         let a = &samples.unit[p * slots..(p + 1) * slots];
-        let (w, b, sp) = (weight[p], f64::from(photo[c]), scale[samples.part_of[p]]);
+        let (w, b, sp) = (weight[p], f64::from(photo[c]), factor[p]);
         for j in 0..slots {
             let aj = sp * f64::from(a[j][c]);
             h[j] += w * aj * b;
@@ -329,6 +395,9 @@ mod tests {
         }
     }
 
+    const JOINT: Unknowns = Unknowns { part_scales: true, exposure: true };
+    const PLAIN: Unknowns = Unknowns { part_scales: false, exposure: false };
+
     /// Three parts under two lights whose mix varies across each part and differs between parts; the albedos the renders
     /// assumed are off by a factor per part. The joint solve recovers the lights' ratio and the
     /// factors (up to the global scale), and the plain solve, which trusts the albedos, does not.
@@ -347,10 +416,12 @@ mod tests {
                 let clean = albedo_error[part] * (true_radiance[0][c] * unit[0][c] + true_radiance[1][c] * unit[1][c]);
                 clean * (1.0 + 0.02 * (rng.next_f64() as f32 - 0.5))
             });
-            samples.push(photo, part, unit.into_iter());
+            samples.push(photo, part, 0, unit.into_iter());
         }
-        let joint = solve_samples(&samples, true);
-        let plain = solve_samples(&samples, false);
+        let joint = solve_samples(&samples, JOINT);
+        let plain = solve_samples(&samples, PLAIN);
+        // One view: its exposure is the global scale, not fitted.
+        assert_eq!(joint.exposure, vec![[1.0f32; 3]]);
         let geo_mean = (albedo_error.iter().map(|a| a.ln()).sum::<f32>() / 3.0).exp();
         #[allow(clippy::needless_range_loop)] // c indexes four arrays in parallel
         for c in 0..3 {
@@ -364,5 +435,71 @@ mod tests {
                 assert!((found[c] / expected - 1.0).abs() < 0.02, "part {part}: {:?}", joint.part_scales);
             }
         }
+    }
+
+    /// The pixel-count-weighted geometric mean per channel of `values[group]` over `groups`.
+    fn weighted_geo_mean(values: &[[f32; 3]], groups: &[usize]) -> [f32; 3] {
+        std::array::from_fn(|c| {
+            (groups.iter().map(|&g| f64::from(values[g][c]).ln()).sum::<f64>() / groups.len() as f64).exp() as f32
+        })
+    }
+
+    /// Three views of four parts under two lights, each view at its own RGB exposure, every
+    /// part's assumed albedo off by a factor, and each view seeing three of the parts (so that
+    /// every part is seen at two exposures). The joint solve recovers the exposures, the lights'
+    /// ratio and the part factors (up to the global scales its geometric means fix); with the
+    /// exposures held at 1 the part factors must absorb them and cannot, so it fits worse.
+    #[test]
+    fn the_joint_solve_recovers_per_view_exposures() {
+        let mut rng = SplitMix64::new(17);
+        let true_radiance = [[30.0f32, 20.0, 10.0], [10.0, 12.0, 14.0]];
+        let true_exposure = [[1.0f32, 1.0, 1.0], [1.5, 1.35, 1.2], [0.7, 0.8, 0.9]];
+        let albedo_error = [[0.6f32; 3], [1.0; 3], [1.5, 1.4, 1.3], [0.8, 0.9, 1.0]];
+        let seen: [&[usize]; 3] = [&[0, 1, 2], &[1, 2, 3], &[0, 2, 3]];
+        let mut samples = Samples { slots: 2, ..Samples::default() };
+        let (mut view_of, mut part_of) = (Vec::new(), Vec::new());
+        for (view, parts) in seen.iter().enumerate() {
+            for p in 0..1200 {
+                let part = parts[p % parts.len()];
+                // Each part lies more under one light than the other, differently in each view.
+                let t = 1.0 - (0.7 * part as f32 + 0.2 * view as f32 + 1.5 * rng.next_f64() as f32) / 4.0;
+                let unit = [[t * 0.01; 3], [(1.0 - t) * 0.01 + 0.002; 3]];
+                let photo: [f32; 3] = std::array::from_fn(|c| {
+                    let clean = true_exposure[view][c]
+                        * albedo_error[part][c]
+                        * (true_radiance[0][c] * unit[0][c] + true_radiance[1][c] * unit[1][c]);
+                    clean * (1.0 + 0.02 * (rng.next_f64() as f32 - 0.5))
+                });
+                samples.push(photo, part, view, unit.into_iter());
+                view_of.push(view);
+                part_of.push(part);
+            }
+        }
+        let joint = solve_samples(&samples, JOINT);
+        let without = solve_samples(&samples, Unknowns { part_scales: true, exposure: false });
+        assert_eq!(without.exposure, vec![[1.0f32; 3]; 3], "exposures disabled stay at 1");
+        let exposure_mean = weighted_geo_mean(&true_exposure, &view_of);
+        let albedo_mean = weighted_geo_mean(&albedo_error, &part_of);
+        let mut worst_without = 0.0f32;
+        #[allow(clippy::needless_range_loop)] // c indexes several arrays in parallel
+        for c in 0..3 {
+            let true_ratio = true_radiance[0][c] / true_radiance[1][c];
+            let ratio = |s: &LightSolve| s.radiance[0][c] / s.radiance[1][c];
+            assert!((ratio(&joint) / true_ratio - 1.0).abs() < 0.02, "channel {c}: {} vs {true_ratio}", ratio(&joint));
+            for (view, (truth, found)) in true_exposure.iter().zip(&joint.exposure).enumerate() {
+                let expected = truth[c] / exposure_mean[c];
+                assert!((found[c] / expected - 1.0).abs() < 0.02, "view {view}, channel {c}: {:?}", joint.exposure);
+            }
+            for (part, (error, found)) in albedo_error.iter().zip(&joint.part_scales).enumerate() {
+                let expected = error[c] / albedo_mean[c];
+                assert!((found[c] / expected - 1.0).abs() < 0.02, "part {part}, channel {c}: {:?}", joint.part_scales);
+                worst_without = worst_without.max((without.part_scales[part][c] / expected - 1.0).abs());
+            }
+            // The residual is the noise (uniform ±1%, rms 0.6%) with the exposures and several
+            // times it without.
+            assert!(joint.relative_rms[c] < 0.01, "channel {c}: {:?}", joint.relative_rms);
+            assert!(without.relative_rms[c] > 3.0 * joint.relative_rms[c], "{:?}", without.relative_rms);
+        }
+        assert!(worst_without > 0.05, "without exposures the part factors should be off: {worst_without}");
     }
 }

@@ -1,6 +1,7 @@
 //! Writing a fit: `materials.json` (the `psc render --assign` format), `lights.json` (the
 //! `--lights` format), `parts/<part>.json` (the decisions and measurements behind each part),
-//! baked maps per part, the input views re-rendered beside their photos, and `result.json`.
+//! baked maps per part, the input views re-rendered (at each view's fitted exposure) beside
+//! their photos, and `result.json`.
 //!
 //! The folder is written whole or not at all: everything goes into a temporary sibling that is
 //! renamed into place at the end.
@@ -159,6 +160,8 @@ pub fn write_into(
         renders = render_views(dir, scene, library, result, options)?;
     }
     let timings: serde_json::Map<String, Value> = result.timings.iter().map(|(k, v)| (k.clone(), json!(v))).collect();
+    let exposure: serde_json::Map<String, Value> =
+        scene.views.iter().enumerate().map(|(i, v)| (v.name.clone(), json!(view_exposure(result, i)))).collect();
     write_json(
         &dir.join("result.json"),
         &json!({
@@ -167,15 +170,22 @@ pub fn write_into(
             "command": options.command,
             // Absolute, so the folder can be rendered and reported from anywhere.
             "scene": std::fs::canonicalize(&scene.root).unwrap_or_else(|_| scene.root.clone()).display().to_string(),
-            "lights": { "source": result.light_source, "slots": result.slot_names, "radiance_rgb": result.radiance, "solve_rounds": result.light_rounds },
+            "lights": { "source": result.light_source, "slots": result.slot_names, "radiance_rgb": result.radiance,
+                        "exposure_rgb": exposure, "solve_rounds": result.light_rounds },
             // Everything `--resume` and `--refit-only` start from, exactly (f32 values round-trip in JSON).
-            "fit_state": PreviousFit { parts: result.parts.clone(), radiance: result.radiance.clone() },
+            "fit_state": PreviousFit { parts: result.parts.clone(), radiance: result.radiance.clone(),
+                                       exposure: result.exposure.clone() },
             "parts": result.parts.iter().map(|p| json!({"name": p.name, "status": p.status, "graph": p.graph,
                 "loss": p.loss.total, "view": p.view})).collect::<Vec<_>>(),
             "renders": renders.iter().map(|p| p.strip_prefix(dir).unwrap_or(p).display().to_string()).collect::<Vec<_>>(),
             "timings_s": timings,
         }),
     )
+}
+
+/// The RGB exposure of the scene's view `index` (1 where the fit has none).
+fn view_exposure(result: &FitResult, index: usize) -> [f32; 3] {
+    result.exposure.get(index).copied().unwrap_or([1.0; 3])
 }
 
 /// The part's material baked over one tile: the graph at its fitted parameters with the albedo
@@ -194,8 +204,9 @@ fn bake_part(library: &Library, p: &PartResult, dir: &Path, size: usize) -> Resu
     Ok(())
 }
 
-/// Each input view re-rendered by the path tracer with the fitted materials and lights, and a
-/// side-by-side of photo and render.
+/// Each input view re-rendered by the path tracer with the fitted materials and lights, times
+/// the view's fitted exposure (so it is comparable with the photo), and a side-by-side of
+/// photo and render.
 fn render_views(
     dir: &Path,
     scene: &Scene,
@@ -207,7 +218,7 @@ fn render_views(
     std::fs::create_dir_all(&renders_dir).map_err(|e| out_err(&renders_dir, e))?;
     let renderer = Renderer::new(scene, result.bindings(library)?, &result.light_radiances(scene))?;
     let mut written = Vec::new();
-    for view in &scene.views {
+    for (index, view) in scene.views.iter().enumerate() {
         let opts = RenderOptions {
             width: view.width,
             height: view.height,
@@ -215,7 +226,13 @@ fn render_views(
             seed: options.seed,
             ..Default::default()
         };
-        let out = renderer.render(&view.camera, &opts)?;
+        let mut out = renderer.render(&view.camera, &opts)?;
+        let exposure = view_exposure(result, index);
+        for p in out.image.iter_mut() {
+            for (x, e) in p.iter_mut().zip(exposure) {
+                *x *= e;
+            }
+        }
         let path = renders_dir.join(format!("{}.png", file_stem(&view.name)));
         image_io::write_rgb(&path, view.width, view.height, &out.image)?;
         written.push(path);

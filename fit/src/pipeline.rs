@@ -159,6 +159,10 @@ pub struct FitResult {
     pub light_source: String,
     /// The global light solves of the re-fit rounds, in order (none with `--lights`).
     pub light_rounds: Vec<LightRound>,
+    /// Per view (scene order), its RGB exposure: the factor between a render of the fitted
+    /// scene and that view's photo. The last light solve's (1 for a single view, and until the
+    /// first solve); with `--lights`, the previous fit's or 1.
+    pub exposure: Vec<[f32; 3]>,
     /// (stage, seconds) in order.
     pub timings: Vec<(String, f64)>,
 }
@@ -223,14 +227,23 @@ const UNOBSERVED_ALBEDO: [f32; 3] = [0.5; 3];
 pub(crate) const DEFAULT_ROUGHNESS: f32 = 0.5;
 const HOMOGENEOUS: &str = "homogeneous";
 
-/// What `--refit-only` starts from: a previous fit's parts and radiances (its `result.json`).
+/// What `--resume` and `--refit-only` start from: a previous fit's parts, radiances and
+/// per-view exposures (its `result.json`).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PreviousFit {
     pub parts: Vec<PartResult>,
     pub radiance: Vec<[f32; 3]>,
+    /// One per view in scene order; empty (every view at 1) in fits made before exposures.
+    #[serde(default)]
+    pub exposure: Vec<[f32; 3]>,
 }
 
 impl PreviousFit {
+    /// The exposure of every view of a scene with `n_views` views (1 where none was saved).
+    fn exposures(&self, n_views: usize) -> Vec<[f32; 3]> {
+        (0..n_views).map(|v| self.exposure.get(v).copied().unwrap_or([1.0; 3])).collect()
+    }
+
     /// Checks that the previous fit belongs to `scene` and `library`.
     fn check(&self, scene: &Scene, library: &Library, n_slots: usize) -> Result<(), FitError> {
         let names: Vec<&String> = self.parts.iter().map(|p| &p.name).collect();
@@ -246,6 +259,14 @@ impl PreviousFit {
             return Err(FitError::Input(format!(
                 "the previous fit has {} light radiances for the scene's {n_slots} (or a bad value)",
                 self.radiance.len()
+            )));
+        }
+        let n_views = scene.views.len();
+        let bad_exposure = self.exposure.iter().flatten().any(|e| !e.is_finite() || *e <= 0.0);
+        if (!self.exposure.is_empty() && self.exposure.len() != n_views) || bad_exposure {
+            return Err(FitError::Input(format!(
+                "the previous fit has {} view exposures for the scene's {n_views} views (or one not finite and positive)",
+                self.exposure.len()
             )));
         }
         for p in &self.parts {
@@ -426,10 +447,20 @@ fn run(
     if fit_parts {
         progress.stage("fit parts", n_parts as u64);
     }
+    // Before the first light solve every view is at exposure 1; a resumed fit keeps the
+    // exposures solved with the lights it starts from.
+    let exposure = previous.map_or_else(|| vec![[1.0; 3]; views.len()], |p| p.exposures(views.len()));
     for part in (0..n_parts).filter(|_| fit_parts) {
         let name = &scene.mesh.part_names[part];
         let before = previous.map(|p| &p.parts[part]);
-        let inputs = PartInputs { scene, library, homogeneous: &homogeneous, renderer: &renderer, views: &views };
+        let inputs = PartInputs {
+            scene,
+            library,
+            homogeneous: &homogeneous,
+            renderer: &renderer,
+            views: &views,
+            exposure: &exposure,
+        };
         let result = fit_one_part(&inputs, &aligned, &shading, part as u32, before, options)?;
         progress.note(&summary(name, &result));
         parts.push(result);
@@ -443,12 +474,13 @@ fn run(
         radiance,
         light_source,
         light_rounds: Vec::new(),
+        exposure,
         timings,
     };
     let mut shading = shading;
     let inputs = RoundInputs { library, homogeneous: &homogeneous, views: &views, aligned: &aligned, options };
     {
-        let light = RoundLighting { renderer: &renderer, shading: &shading };
+        let light = RoundLighting { renderer: &renderer, shading: &shading, exposure: &result.exposure };
         for part in result.parts.iter_mut() {
             refit::match_whole_part(&inputs, &light, part)?;
         }
@@ -468,23 +500,25 @@ fn run(
                 break;
             }
             let change = relative_change(&result.radiance, &solve.radiance);
+            let lights: Vec<String> = result
+                .slot_names
+                .iter()
+                .zip(&solve.radiance)
+                .zip(&solve.share)
+                .map(|((n, r), s)| format!("{n} ({:.1}, {:.1}, {:.1}) carries {:.0}%", r[0], r[1], r[2], s * 100.0))
+                .collect();
             progress.note(&format!(
-                "round {}: lights solved from {} pixels (relative rms {:.3}, {:.0}% outliers): {}; change {:.1}%",
+                "round {}: lights solved from {} pixels (relative rms {:.3}, {:.0}% outliers): {}; change {:.1}%{}",
                 round + 1,
                 solve.pixels,
                 solve.relative_rms[1],
                 solve.outliers * 100.0,
-                result
-                    .slot_names
-                    .iter()
-                    .zip(&solve.radiance)
-                    .zip(&solve.share)
-                    .map(|((n, r), s)| format!("{n} ({:.1}, {:.1}, {:.1}) carries {:.0}%", r[0], r[1], r[2], s * 100.0))
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                change * 100.0
+                lights.join(", "),
+                change * 100.0,
+                exposure_note(&views, &solve.exposure)
             ));
             result.radiance = solve.radiance.clone();
+            result.exposure = solve.exposure.clone();
             // The joint solve's albedo factors start the re-fit (which then refines them).
             for (part, factor) in result.parts.iter_mut().zip(&solve.part_scales) {
                 if part.status != PartStatus::Unobserved {
@@ -503,7 +537,7 @@ fn run(
         shading =
             grids.iter().zip(&views).map(|(g, o)| ShadingGrid::new(g, &result.radiance, o.camera.position)).collect();
         progress.stage("re-fit albedo scale and roughness", n_parts as u64);
-        let light = RoundLighting { renderer: &renderer, shading: &shading };
+        let light = RoundLighting { renderer: &renderer, shading: &shading, exposure: &result.exposure };
         for part in result.parts.iter_mut() {
             refit::refit_appearance(&inputs, &light, part)?;
             refit::match_whole_part(&inputs, &light, part)?;
@@ -517,6 +551,20 @@ fn run(
         }
     }
     Ok(result)
+}
+
+/// "; exposures view0 (r, g, b), …" for a solve of several views, else nothing (a single view's
+/// exposure is 1 by definition).
+fn exposure_note(views: &[ViewObservation], exposure: &[[f32; 3]]) -> String {
+    if views.len() < 2 {
+        return String::new();
+    }
+    let list: Vec<String> = views
+        .iter()
+        .zip(exposure)
+        .map(|(v, e)| format!("{} ({:.3}, {:.3}, {:.3})", v.name, e[0], e[1], e[2]))
+        .collect();
+    format!("; exposures {}", list.join(", "))
 }
 
 fn summary(name: &str, r: &PartResult) -> String {
@@ -543,6 +591,8 @@ struct PartInputs<'a> {
     homogeneous: &'a std::sync::Arc<psc_runtime::library::Material>,
     renderer: &'a Renderer,
     views: &'a [ViewObservation],
+    /// Per view, the exposure its photo is compared at.
+    exposure: &'a [[f32; 3]],
 }
 
 /// Fits one part; `before`: the part in a previous fit that this one continues (`--resume`).
@@ -554,7 +604,7 @@ fn fit_one_part(
     before: Option<&PartResult>,
     options: &FitOptions,
 ) -> Result<PartResult, FitError> {
-    let PartInputs { scene, library, homogeneous, renderer, views } = *inputs;
+    let PartInputs { scene, library, homogeneous, renderer, views, exposure } = *inputs;
     let name = scene.mesh.part_names[part as usize].clone();
     let started = Instant::now();
     let mut result = PartResult {
@@ -582,7 +632,8 @@ fn fit_one_part(
     for (v, list) in aligned.iter().enumerate() {
         let Some(a) = list.iter().find(|a| a.part == part && !a.usable.is_empty()) else { continue };
         let obs = &views[v];
-        let Some(view) = part_view(obs, a, renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, 1.0)
+        let Some(view) =
+            part_view(obs, a, renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, exposure[v])
         else {
             continue;
         };
@@ -618,9 +669,16 @@ fn fit_one_part(
         result.timings.targets = started.elapsed().as_secs_f64();
         return Ok(result);
     }
-    let fit_view =
-        part_view(obs, chosen, renderer.geometry(), &obs.camera, &shading[chosen.view], options.fit_pixels, 1.0)
-            .expect("the search view of the same pixels exists");
+    let fit_view = part_view(
+        obs,
+        chosen,
+        renderer.geometry(),
+        &obs.camera,
+        &shading[chosen.view],
+        options.fit_pixels,
+        exposure[chosen.view],
+    )
+    .expect("the search view of the same pixels exists");
     result.pixels.fitted = fit_view.pixels.len();
     let mut scratch = Scratch::default();
     let fit_loss = PartLoss::new(&fit_view, options.loss, &options.features, &mut scratch)?;

@@ -1,6 +1,7 @@
 //! The loop after the per-part fit (PhotoScene Sec. 3.4): with every part's graph, parameters
-//! and UV transform frozen, solve the lights globally under the fitted materials, re-render the
-//! light grids, and re-fit each part's albedo scale and roughness; then match each part's mean
+//! and UV transform frozen, solve the lights (and each view's exposure) globally under the
+//! fitted materials, re-render the light grids, and re-fit each part's albedo scale and
+//! roughness against its view's photo at that view's exposure; then match each part's mean
 //! colour over all its usable pixels.
 //!
 //! The whole-part mean match exists because the appearance fit sees a window of at most
@@ -24,8 +25,9 @@ use crate::part_fit::{fit_part, FitSettings, Problem};
 use crate::pipeline::{flat_colour, flat_state, FitOptions, PartResult, PartStatus};
 use crate::targets::part_view;
 
-/// Solves every emitter's radiance jointly with a factor on every part's albedo, under the
-/// renderer's current materials (see [`light_solve::solve_with_part_scales`]).
+/// Solves every emitter's radiance jointly with a factor on every part's albedo and an exposure
+/// per view, under the renderer's current materials (see
+/// [`light_solve::solve_with_part_scales`]).
 pub fn solve_lights(renderer: &Renderer, views: &[ViewObservation], seed: u64) -> Result<LightSolve, FitError> {
     let renders = lighting::unit_renders(renderer, views, seed)?;
     light_solve::solve_with_part_scales(views, &renders)
@@ -40,10 +42,19 @@ pub struct RoundInputs<'a> {
     pub options: &'a FitOptions,
 }
 
-/// What changes from round to round: the renderer's materials and the lighting.
+/// What changes from round to round: the renderer's materials, the lighting and the views'
+/// exposures.
 pub struct RoundLighting<'a> {
     pub renderer: &'a Renderer,
     pub shading: &'a [ShadingGrid],
+    /// Per view, the RGB exposure its photo is compared at (the last light solve's).
+    pub exposure: &'a [[f32; 3]],
+}
+
+impl RoundLighting<'_> {
+    fn exposure(&self, view: usize) -> [f32; 3] {
+        self.exposure.get(view).copied().unwrap_or([1.0; 3])
+    }
 }
 
 impl RoundInputs<'_> {
@@ -62,13 +73,17 @@ pub fn refit_appearance(inputs: &RoundInputs, light: &RoundLighting, part: &mut 
     let geometry = light.renderer.geometry();
     let mut ws = Workspace::default();
     if part.status == PartStatus::Homogeneous {
-        if let Some(view) = part_view(obs, a, geometry, &obs.camera, &light.shading[v], options.search_pixels, 1.0) {
+        let exposure = light.exposure(v);
+        if let Some(view) = part_view(obs, a, geometry, &obs.camera, &light.shading[v], options.search_pixels, exposure)
+        {
             let colour = flat_colour(inputs.homogeneous, &view, &mut ws)?;
             part.state = flat_state(inputs.homogeneous, colour, part.state.roughness);
         }
         return Ok(());
     }
-    let Some(fit_view) = part_view(obs, a, geometry, &obs.camera, &light.shading[v], options.fit_pixels, 1.0) else {
+    let Some(fit_view) =
+        part_view(obs, a, geometry, &obs.camera, &light.shading[v], options.fit_pixels, light.exposure(v))
+    else {
         return Ok(());
     };
     let material = inputs.library.get(&part.graph).expect("fitted graphs come from the library");
@@ -98,7 +113,8 @@ pub fn match_whole_part(inputs: &RoundInputs, light: &RoundLighting, part: &mut 
         return Ok(0.0);
     }
     let obs = &inputs.views[v];
-    let Some(view) = part_view(obs, a, light.renderer.geometry(), &obs.camera, &light.shading[v], usize::MAX, 1.0)
+    let exposure = light.exposure(v);
+    let Some(view) = part_view(obs, a, light.renderer.geometry(), &obs.camera, &light.shading[v], usize::MAX, exposure)
     else {
         return Ok(0.0);
     };

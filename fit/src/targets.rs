@@ -17,8 +17,8 @@ use crate::layer::{FitPixel, PartView};
 use crate::lighting::ShadingGrid;
 use crate::observe::{surface_at, ViewObservation};
 
-/// Builds the target of `aligned` with at most about `max_pixels` fit pixels; None when no
-/// usable pixel has a surface point and lighting.
+/// Builds the target of `aligned` with at most about `max_pixels` fit pixels, rendered at the
+/// view's RGB `exposure`; None when no usable pixel has a surface point and lighting.
 pub fn part_view(
     obs: &ViewObservation,
     aligned: &AlignedPart,
@@ -26,7 +26,7 @@ pub fn part_view(
     camera: &Camera,
     grid: &ShadingGrid,
     max_pixels: usize,
-    exposure: f32,
+    exposure: [f32; 3],
 ) -> Option<PartView> {
     let w = obs.photo.width;
     let usable = window(&aligned.usable, w, obs.photo.height, max_pixels);

@@ -181,6 +181,34 @@ fn results_do_not_depend_on_the_thread_count() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The fit's exposure of an input view (result.json) multiplies the renders of that view under
+/// the fit's lights, and nothing else: not the relit view on the same camera, not the oracle.
+#[test]
+fn input_views_are_rendered_at_the_fits_exposure() {
+    let dir = temp_dir("exposure");
+    let fit = write_fit(&dir, &scene());
+    let opts = quick(&[Method::Oracle, Method::Fitted], &[ViewKind::Input, ViewKind::Relit], &[Geometry::Model], 1);
+    let plain = run(&scene(), &fit, &opts).unwrap();
+    let exposure = [2.0f32, 1.0, 0.5];
+    std::fs::write(&fit.result, serde_json::json!({"lights": {"exposure_rgb": {"view0": exposure}}}).to_string())
+        .unwrap();
+    let exposed = run(&scene(), &fit, &opts).unwrap();
+    assert_eq!(exposed.input_exposure, vec![("view0".to_string(), exposure)]);
+    let mut compared = 0;
+    for (a, b) in plain.images.iter().zip(&exposed.images) {
+        assert_eq!((a.kind, a.method, &a.view), (b.kind, b.method, &b.view));
+        let e = if (a.kind, a.method) == (ViewKind::Input, Method::Fitted) { exposure } else { [1.0; 3] };
+        for (p, q) in a.render.iter().zip(&b.render) {
+            assert_eq!(*q, [0, 1, 2].map(|k| p[k] * e[k]), "{:?} {:?}", a.kind, a.method);
+        }
+        compared += 1;
+    }
+    assert_eq!(compared, 4);
+    let input = |e: &psc_fit::eval::Evaluation| e.row(Geometry::Model, ViewKind::Input, Method::Fitted).unwrap().rmse;
+    assert!(input(&plain) != input(&exposed), "the metrics see the exposure");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Copy a folder tree.
 fn copy_tree(from: &Path, to: &Path, skip: &dyn Fn(&Path) -> bool) {
     std::fs::create_dir_all(to).unwrap();
@@ -245,6 +273,17 @@ fn bad_fit_files_are_clear_errors() {
         expect_error(&scene(), &fit, &opts, needle);
     }
     std::fs::write(&fit.materials, &good_materials).unwrap();
+
+    for (text, needle) in [
+        (r#"{"lights": {"exposure_rgb": {"view0": [1, 0, 1]}}}"#, "view0"),
+        (r#"{"lights": {"exposure_rgb": {"view0": [1, 1]}}}"#, "view0"),
+        (r#"{"lights": {"exposure_rgb": [1, 1, 1]}}"#, "exposure_rgb"),
+        (r#"{"lights": "#, "result.json"),
+    ] {
+        std::fs::write(&fit.result, text).unwrap();
+        expect_error(&scene(), &fit, &opts, needle);
+    }
+    std::fs::remove_file(&fit.result).unwrap();
     std::fs::remove_file(&fit.lights).unwrap();
     expect_error(&scene(), &fit, &opts, "missing");
     let _ = std::fs::remove_dir_all(&dir);

@@ -160,6 +160,8 @@ fn an_existing_output_folder_is_kept_unless_forced_and_refit_only_starts_from_it
         "result.json's fit_state does not round-trip"
     );
     assert_eq!(previous.radiance, result.radiance);
+    assert_eq!(previous.exposure, result.exposure, "the views' exposures round-trip");
+    assert_eq!(result.exposure, vec![[1.0f32; 3]], "a single view's exposure is 1");
     let mut refit_options = options.clone();
     refit_options.refit_rounds = 1;
     let refit = refit_scene(&scene, &library, None, &previous, &refit_options, &Silent).unwrap();
@@ -171,6 +173,13 @@ fn an_existing_output_folder_is_kept_unless_forced_and_refit_only_starts_from_it
     wrong.parts.pop();
     let err = refit_scene(&scene, &library, None, &wrong, &refit_options, &Silent).unwrap_err().to_string();
     assert!(err.contains("other parts"), "{err}");
+    let mut wrong = previous.clone();
+    wrong.exposure = vec![[1.0; 3], [0.9; 3]];
+    let err = refit_scene(&scene, &library, None, &wrong, &refit_options, &Silent).unwrap_err().to_string();
+    assert!(err.contains("view exposures"), "{err}");
+    wrong.exposure = vec![[1.0, f32::NAN, 1.0]];
+    let err = refit_scene(&scene, &library, None, &wrong, &refit_options, &Silent).unwrap_err().to_string();
+    assert!(err.contains("view exposures"), "{err}");
     let _ = std::fs::remove_dir_all(&tmp);
 }
 

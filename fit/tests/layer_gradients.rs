@@ -1,6 +1,7 @@
 //! The shading layer's exact adjoint against central finite differences, for every graph of
 //! the library: parameters, the UV transform (θ, log-scale, offset), the albedo scale and the
-//! roughness, through supersampling, normal mapping, the light grid and the sRGB encoding.
+//! roughness, through supersampling, normal mapping, the light grid, the view's per-channel
+//! exposure and the sRGB encoding.
 //!
 //! A probe whose difference quotients at h and h/2 disagree crossed a kink or a jump of the
 //! graph (floor, hash, comparisons) and is skipped rather than compared loosely; a floor on the
@@ -60,7 +61,8 @@ fn synthetic_view(rng: &mut SplitMix64) -> PartView {
         weight,
         target: vec![[0.5; 3]; width * height],
         target_linear: vec![[0.2; 3]; width * height],
-        exposure: 0.35,
+        // Per channel, so that the adjoint of the RGB exposure is checked.
+        exposure: [0.35, 0.45, 0.28],
     }
 }
 

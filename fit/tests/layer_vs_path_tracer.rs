@@ -85,7 +85,8 @@ fn check_scene(name: &str, library: &Library, graph: &str, uv: UvTransform) -> V
     let mut out = Vec::new();
     let mut ws = Workspace::default();
     for aligned in align_view(obs, 0, n_parts) {
-        let Some(pv) = part_view(obs, &aligned, renderer.geometry(), &obs.camera, &shading, usize::MAX, 1.0) else {
+        let Some(pv) = part_view(obs, &aligned, renderer.geometry(), &obs.camera, &shading, usize::MAX, [1.0; 3])
+        else {
             continue;
         };
         if pv.pixels.len() < 500 {

@@ -422,7 +422,21 @@ fn lights(fit: &FitFolder) -> String {
         s.push_str("<p>Global light solves of the re-fit rounds (largest relative change of a light against the round before; the fit's residual).</p>");
         s.push_str(&table(&["round", "change", "pixels", "relative RMS (r, g, b)", "outlier fraction"], &rows));
     }
-    s
+    s + &exposures(fit)
+}
+
+/// The per-view RGB exposures the light solve found (`lights.exposure_rgb`), when the fit has
+/// several views (a single view's is 1 by definition).
+fn exposures(fit: &FitFolder) -> String {
+    let Some(map) = fit.result.pointer("/lights/exposure_rgb").and_then(Value::as_object) else {
+        return String::new();
+    };
+    if map.len() < 2 {
+        return String::new();
+    }
+    let rows: Vec<Vec<String>> = map.iter().map(|(view, e)| vec![esc(view), value(e)]).collect();
+    "<p>Per-view exposure: the factor per channel between a render of the fitted scene and the view's photo (solved with the lights; their geometric mean over the views, weighted by pixels, is 1).</p>".to_string()
+        + &table(&["view", "exposure (r, g, b)"], &rows)
 }
 
 fn evaluation(fit: &FitFolder) -> String {

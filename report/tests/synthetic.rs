@@ -38,6 +38,7 @@ fn fit_folder(dir: &Path) {
             "format": "photoscene-fit/1", "version": "0.1.0", "command": "psc fit examples/room <&>",
             "scene": scene.display().to_string(),
             "lights": {"source": "solved", "slots": ["ceiling0"], "radiance_rgb": [[5, 5, 5]],
+                       "exposure_rgb": {"view0": [1.25, 1.0, 0.8], "view1": [0.8, 1.0, 1.25]},
                        "solve_rounds": [{"change": 0.5, "solve": {"radiance": [[4, 4, 4]], "share": [0.75], "pixels": 900,
                                                                    "relative_rms": [0.1, 0.1, 0.1], "outliers": 0.05}}]},
             "parts": [
@@ -118,6 +119,7 @@ fn every_part_has_a_section_and_every_image_is_inline() {
     assert!(html.contains("oak_planks ✔"));
     assert!(html.contains("<th>share</th>") && html.contains("<td>0.7500</td>"), "the last solve's share");
     assert!(html.contains("<td>900</td>"), "the solve rounds' table");
+    assert!(html.contains("<td>view1</td><td>[0.8000, 1.000, 1.250]</td>"), "the per-view exposures");
     assert!(html.contains("<code>light</code>"));
     // Nothing but data: URIs and anchors is referenced, and a CSP forbids anything else.
     assert!(html.contains("default-src 'none'; img-src data:"));

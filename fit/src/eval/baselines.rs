@@ -5,7 +5,8 @@
 //!   as a constant albedo, roughness 0.7, flat normal. A part no input view shows gets the median
 //!   over every labelled pixel of the input views.
 //! - **flat fitted**: a constant albedo per part fitted under the evaluated lights on the coarse
-//!   model: start from the pixel median, render the input views, multiply each part's albedo by
+//!   model: start from the pixel median, render the input views (each times the fit's exposure
+//!   of that view), multiply each part's albedo by
 //!   (photo linear mean / render linear mean) per channel over the part's pixels, clamp to
 //!   [0, 1], repeat (the repeats account for interreflections). A part's pixels: labelled as the
 //!   part in the photo, showing the part in the coarse model's G-buffer (where the model is
@@ -160,7 +161,8 @@ pub type FlatFit = (Vec<[f32; 3]>, Vec<(f64, String)>);
 
 /// The flat-fitted albedos after `iterations` rounds of the mean-ratio update from `start`, and
 /// per round the largest change of a channel (|new − old| of the linear albedo, over parts and
-/// channels) with the part it happened on, to show the convergence. `on_render` is called after each render (for progress).
+/// channels) with the part it happened on, to show the convergence. `exposure`: per input view,
+/// the RGB factor on its renders. `on_render` is called after each render (for progress).
 #[allow(clippy::too_many_arguments)]
 pub fn flat_fit(
     ctx: &mut GeometryContext,
@@ -169,6 +171,7 @@ pub fn flat_fit(
     start: &[[f32; 3]],
     roughness: &[f32],
     slot_radiance: &[[f32; 3]],
+    exposure: &[[f32; 3]],
     settings: &RenderSettings,
     iterations: u32,
     on_render: &mut dyn FnMut(String),
@@ -190,14 +193,15 @@ pub fn flat_fit(
     for round in 0..iterations {
         let materials = constant_materials(&albedo, roughness);
         let mut render_sum = vec![[0.0f64; 3]; n];
-        for (v, mask) in inputs.iter().zip(masks) {
+        for (i, (v, mask)) in inputs.iter().zip(masks).enumerate() {
             let slots = ctx.render_slots(&materials, &v.camera, v.width, v.height, settings)?;
             let img = backend::combine_slots(&slots, slot_radiance);
+            let e = exposure.get(i).copied().unwrap_or([1.0; 3]);
             on_render(format!("flat fit round {} view {}", round + 1, v.name));
             for ((p, r), &id) in v.truth.iter().zip(&img).zip(mask) {
                 if id > 0 && p.iter().all(|&c| c < CLIP_LEVEL) {
                     for k in 0..3 {
-                        render_sum[id as usize - 1][k] += r[k] as f64;
+                        render_sum[id as usize - 1][k] += (e[k] * r[k]) as f64;
                     }
                 }
             }

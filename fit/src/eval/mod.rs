@@ -9,6 +9,9 @@
 //! - per method: `fitted` (the fit's materials.json), `flat fitted` and `pixel median`
 //!   ([`baselines`]) under the fit's lights, and with `oracle` the true materials under the true
 //!   lights (the floor the renderer's noise and the geometry leave);
+//! - the renders of an input view under the fit's lights are multiplied by the fit's RGB
+//!   exposure of that view (result.json `lights.exposure_rgb`; 1 without one), as the fit
+//!   compared them with the photos; novel and relit views, and the oracle, are at exposure 1;
 //! - on the coarse model (the paper's protocol) and on `truth/scene_true.obj`.
 //!
 //! Each (geometry, method, camera) is rendered once: a relit view with the camera of an input
@@ -158,13 +161,47 @@ pub struct FitFiles {
     pub materials: PathBuf,
     /// The `psc render --lights` file.
     pub lights: PathBuf,
+    /// The fit's `result.json`, for the input views' exposures; optional (every view at 1
+    /// without it, or without its `lights.exposure_rgb`).
+    pub result: PathBuf,
 }
 
 impl FitFiles {
-    /// `<dir>/materials.json` and `<dir>/lights.json`.
+    /// `<dir>/materials.json`, `<dir>/lights.json` and `<dir>/result.json`.
     pub fn in_dir(dir: &Path) -> FitFiles {
-        FitFiles { materials: dir.join("materials.json"), lights: dir.join("lights.json") }
+        FitFiles {
+            materials: dir.join("materials.json"),
+            lights: dir.join("lights.json"),
+            result: dir.join("result.json"),
+        }
     }
+}
+
+/// The fit's RGB exposure per input view name, from `result.json`'s `lights.exposure_rgb`
+/// (`{view: [r, g, b]}`); empty when the file or the entry is absent. A present but unreadable
+/// file, or an exposure that is not three finite positive numbers, is an error.
+fn fitted_exposures(path: &Path) -> Result<BTreeMap<String, [f32; 3]>, EvalError> {
+    if !path.is_file() {
+        return Ok(BTreeMap::new());
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| EvalError(format!("{}: {e}", path.display())))?;
+    let v: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| EvalError(format!("{}:{}:{}: {e}", path.display(), e.line(), e.column())))?;
+    let Some(entry) = v.pointer("/lights/exposure_rgb") else { return Ok(BTreeMap::new()) };
+    let bad = |what: String| EvalError(format!("{}: lights.exposure_rgb: {what}", path.display()));
+    let map = entry.as_object().ok_or_else(|| bad("expected {\"view\": [r, g, b], …}".into()))?;
+    map.iter()
+        .map(|(view, value)| {
+            let rgb: Option<Vec<f32>> =
+                value.as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).map(|x| x as f32).collect());
+            match rgb.as_deref() {
+                Some(&[r, g, b]) if [r, g, b].iter().all(|x| x.is_finite() && *x > 0.0) => {
+                    Ok((view.clone(), [r, g, b]))
+                }
+                _ => Err(bad(format!("view '{view}': {value} is not three finite positive numbers"))),
+            }
+        })
+        .collect()
 }
 
 /// One rendered image compared with its truth.
@@ -216,6 +253,9 @@ pub struct Evaluation {
     /// The lights every method but the oracle renders under (scene order), and the true ones.
     pub fitted_lights: Vec<[f32; 3]>,
     pub true_lights: Vec<[f32; 3]>,
+    /// Per input view (scene order), the fit's RGB exposure its renders under the fit's lights
+    /// are multiplied by.
+    pub input_exposure: Vec<(String, [f32; 3])>,
     pub images: Vec<ImageResult>,
     pub rows: Vec<Row>,
     /// Per part with a true texture kind: the graph the fit chose and whether its family is
@@ -334,6 +374,7 @@ pub fn evaluate(
     warnings.extend(truth.warnings.iter().cloned());
     let (fitted_lights, fitted_env) = backend::read_lights_file(&fit.lights, &model)?;
     let fitted_radiances = Radiances { lights: fitted_lights.clone(), environment: fitted_env };
+    let exposures = fitted_exposures(&fit.result)?;
     let assigned_parts = assigned_part_names(&fit.materials)?;
     let fitted_model = model.assigned_materials(&fit.materials, library)?;
     let graph_choice = graph_choices(&fit.materials, &truth.part_kinds, library)?;
@@ -346,6 +387,17 @@ pub fn evaluate(
     lap("load", &mut stage);
 
     let inputs: Vec<&EvalView> = truth.views.iter().filter(|v| v.kind == ViewKind::Input).collect();
+    let input_exposure: Vec<(String, [f32; 3])> =
+        inputs.iter().map(|v| (v.name.clone(), exposures.get(&v.name).copied().unwrap_or([1.0; 3]))).collect();
+    // The exposure a method's render of a view is multiplied by.
+    let exposure_of = |v: &EvalView, method: Method| -> [f32; 3] {
+        match (v.kind, method) {
+            (ViewKind::Input, m) if m != Method::Oracle => {
+                input_exposure.iter().find(|(n, _)| *n == v.name).map_or([1.0; 3], |e| e.1)
+            }
+            _ => [1.0; 3],
+        }
+    };
     let evaluated: Vec<&EvalView> = truth.views.iter().filter(|v| opts.kinds.contains(&v.kind)).collect();
     let mut cameras = Vec::new();
     for v in &evaluated {
@@ -377,6 +429,7 @@ pub fn evaluate(
         &pixel_median,
         &flat_roughness,
         &flat_slots,
+        &input_exposure.iter().map(|e| e.1).collect::<Vec<_>>(),
         &flat_settings,
         flat_rounds,
         &mut |what| {
@@ -418,7 +471,11 @@ pub fn evaluate(
                         (Some(_), Method::Oracle) => truth.relit_lights[&v.name].clone(),
                         (Some(ratio), _) => base.times(ratio),
                     };
-                    let linear = backend::combine_slots(&slots, &radiances.slots(ctx.has_environment()));
+                    let mut linear = backend::combine_slots(&slots, &radiances.slots(ctx.has_environment()));
+                    let exposure = exposure_of(v, method);
+                    for p in linear.iter_mut() {
+                        p.iter_mut().zip(exposure).for_each(|(x, e)| *x *= e);
+                    }
                     images.push(compare(geometry, method, v, linear));
                 }
             }
@@ -442,6 +499,7 @@ pub fn evaluate(
         unseen_parts,
         fitted_lights,
         true_lights: truth.lights.lights.clone(),
+        input_exposure,
         images,
         graph_choice,
         rows,
