@@ -12,7 +12,7 @@ use psc_base::output::{Replace, StagedDir};
 use psc_base::progress::Progress as _;
 use psc_export::ExportOptions;
 use psc_fit::output::{self, OutputOptions};
-use psc_fit::pipeline::{fit_scene, refit_scene, resume_scene, FitOptions, Progress};
+use psc_fit::pipeline::{continue_fit, fit_scene, Continue, FitOptions, Progress};
 use psc_render::scene::{LightRadiances, Scene};
 use psc_runtime::assign::Assignment;
 use psc_runtime::library::{default_library_root, Library};
@@ -158,8 +158,10 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     let drawer = Drawer::new(args.quiet);
     let progress = FitProgress { drawer: &drawer, open: AtomicBool::new(false) };
     let result = match &previous {
-        Some(p) if args.resume => resume_scene(&scene, &library, radiances.as_ref(), p, &options, &progress)?,
-        Some(p) => refit_scene(&scene, &library, radiances.as_ref(), p, &options, &progress)?,
+        Some(p) => {
+            let how = if args.resume { Continue::Resume } else { Continue::RefitOnly };
+            continue_fit(&scene, &library, radiances.as_ref(), p, how, &options, &progress)?
+        }
         None => fit_scene(&scene, &library, radiances.as_ref(), &options, &progress)?,
     };
     let output_options = OutputOptions {

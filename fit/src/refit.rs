@@ -21,8 +21,10 @@ use crate::lighting::{self, ShadingGrid};
 use crate::loss::PartLoss;
 use crate::observe::ViewObservation;
 use crate::optim::Free;
+use crate::part::{flat_colour, flat_state};
 use crate::part_fit::{fit_part, FitSettings, Problem};
-use crate::pipeline::{flat_colour, flat_state, FitOptions, PartResult, PartStatus};
+use crate::pipeline::FitOptions;
+use crate::result::{PartResult, PartStatus};
 use crate::targets::part_view;
 
 /// Solves every emitter's radiance jointly with a factor on every part's albedo and an exposure

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use psc_fit::layer::Sampling;
 use psc_fit::output::{self, OutputOptions};
-use psc_fit::pipeline::{fit_scene, refit_scene, resume_scene, FitOptions, PartStatus, Silent};
+use psc_fit::pipeline::{continue_fit, fit_scene, Continue, FitOptions, PartStatus, Silent};
 use psc_render::scene::Scene;
 use psc_runtime::library::{default_library_root, Library};
 
@@ -164,21 +164,27 @@ fn an_existing_output_folder_is_kept_unless_forced_and_refit_only_starts_from_it
     assert_eq!(result.exposure, vec![[1.0f32; 3]], "a single view's exposure is 1");
     let mut refit_options = options.clone();
     refit_options.refit_rounds = 1;
-    let refit = refit_scene(&scene, &library, None, &previous, &refit_options, &Silent).unwrap();
+    let refit = continue_fit(&scene, &library, None, &previous, Continue::RefitOnly, &refit_options, &Silent).unwrap();
     assert_eq!(refit.light_rounds.len(), 1, "the refit solves the lights");
     for (a, b) in refit.parts.iter().zip(&result.parts) {
         assert_eq!((&a.graph, &a.state.params, a.state.uv), (&b.graph, &b.state.params, b.state.uv), "{}", a.name);
     }
     let mut wrong = previous.clone();
     wrong.parts.pop();
-    let err = refit_scene(&scene, &library, None, &wrong, &refit_options, &Silent).unwrap_err().to_string();
+    let err = continue_fit(&scene, &library, None, &wrong, Continue::RefitOnly, &refit_options, &Silent)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("other parts"), "{err}");
     let mut wrong = previous.clone();
     wrong.exposure = vec![[1.0; 3], [0.9; 3]];
-    let err = refit_scene(&scene, &library, None, &wrong, &refit_options, &Silent).unwrap_err().to_string();
+    let err = continue_fit(&scene, &library, None, &wrong, Continue::RefitOnly, &refit_options, &Silent)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("view exposures"), "{err}");
     wrong.exposure = vec![[1.0, f32::NAN, 1.0]];
-    let err = refit_scene(&scene, &library, None, &wrong, &refit_options, &Silent).unwrap_err().to_string();
+    let err = continue_fit(&scene, &library, None, &wrong, Continue::RefitOnly, &refit_options, &Silent)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("view exposures"), "{err}");
     let _ = std::fs::remove_dir_all(&tmp);
 }
@@ -244,7 +250,7 @@ fn resume_continues_every_part_from_its_fitted_state() {
     };
     let mut resume_options = options.clone();
     resume_options.fit.max_iterations = 48;
-    let resumed = resume_scene(&scene, &library, None, &previous, &resume_options, &Silent).unwrap();
+    let resumed = continue_fit(&scene, &library, None, &previous, Continue::Resume, &resume_options, &Silent).unwrap();
     let (before, after) = (fitted(&first), fitted(&resumed));
     assert!(before.len() >= 3, "the example has textured parts: {before:?}");
     assert_eq!(
@@ -268,7 +274,7 @@ fn resume_continues_every_part_from_its_fitted_state() {
     let (name, graph, _) = &before[0];
     let other = if graph == "plaster" { "oak_planks" } else { "plaster" };
     resume_options.forced.insert(name.clone(), other.to_string());
-    let forced = resume_scene(&scene, &library, None, &previous, &resume_options, &Silent).unwrap();
+    let forced = continue_fit(&scene, &library, None, &previous, Continue::Resume, &resume_options, &Silent).unwrap();
     let part = forced.parts.iter().find(|p| &p.name == name).unwrap();
     assert_eq!((&part.graph, &part.status), (&other.to_string(), &PartStatus::Forced));
     let _ = std::fs::remove_dir_all(&tmp);
