@@ -65,7 +65,7 @@ pub struct Args {
     #[arg(long, default_value_t = 4096)]
     fit_pixels: usize,
     /// At most this many rounds of global light solve + albedo/roughness re-fit after the
-    /// first fit (they stop early once no light moves by more than 2%).
+    /// first fit (they stop early once no light or exposure moves by more than 2%).
     #[arg(long, default_value_t = 3)]
     refit_rounds: usize,
     /// Size of the baked maps per part (0: none).

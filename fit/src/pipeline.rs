@@ -86,7 +86,7 @@ impl Progress for Silent {
     fn note(&self, _: &str) {}
 }
 
-/// Rounds stop once no light's radiance moves by more than this fraction.
+/// Rounds stop once no light's radiance and no view's exposure moves by more than this fraction.
 const LIGHT_CONVERGED: f32 = 0.02;
 
 fn relative_change(old: &[[f32; 3]], new: &[[f32; 3]]) -> f32 {
@@ -311,7 +311,8 @@ fn run(
                 ));
                 break;
             }
-            let change = relative_change(&result.radiance, &solve.radiance);
+            let change = relative_change(&result.radiance, &solve.radiance)
+                .max(relative_change(&result.exposure, &solve.exposure));
             let lights: Vec<String> = result
                 .slot_names
                 .iter()

@@ -135,7 +135,8 @@ pub fn binding(
 #[derive(Clone, Debug, Serialize)]
 pub struct LightRound {
     pub solve: LightSolve,
-    /// Largest relative change of a slot's radiance (luminance) against the previous round.
+    /// Largest relative change of a slot's radiance or a view's exposure (luminance) against the
+    /// previous round.
     pub change: f32,
 }
 
