@@ -44,7 +44,9 @@ pub struct Args {
     /// Scene folder (with scene.json), or a `psc fit` output folder (with result.json): its
     /// scene rendered with the fitted materials and lights.
     scene: PathBuf,
-    /// View whose camera and resolution to use (default: the first view).
+    /// View whose camera and resolution to use (default: the first view). Rendering a fit
+    /// output from one of its views, the image is multiplied by the exposure the fit solved for
+    /// that view (result.json), as `renders/<view>.png`, so it compares with the photo.
     #[arg(long, conflicts_with = "camera")]
     view: Option<String>,
     /// Camera JSON: {"position", "look_at", "up", "fov_y_deg"} or {"camera": {...}}, optional width/height.
@@ -213,7 +215,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
     let mut request = view_request(&args, fit.as_ref());
     let library = materials(&args, fit.as_ref(), &mut request)?;
     let drawer = Drawer::new(args.quiet || args.bench);
-    let OpenedView { scene, camera, width, height, materials, radiances, warnings } =
+    let OpenedView { scene, camera, view, width, height, materials, radiances, warnings } =
         open_view(&request, library.as_ref(), &drawer)?;
     for w in &warnings {
         eprintln!("warning: {w}");
@@ -310,7 +312,22 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
             result.seconds
         );
     } else if let Output::Image(path) = &output {
-        image_io::write_rgb(path, width, height, &result.image)?;
+        let mut image = result.image;
+        // A fit's exposure belongs to the camera of the photo it was solved on, not to the
+        // lights: a relit input view keeps it; a camera file has none.
+        if let (Some(fit), Some(view)) = (&fit, &view) {
+            let exposure = fit.exposure(view);
+            if exposure != [1.0; 3] {
+                image.iter_mut().for_each(|p| p.iter_mut().zip(exposure).for_each(|(c, e)| *c *= e));
+                if !args.quiet {
+                    eprintln!(
+                        "exposure: the fit's for view '{view}', {:.3} {:.3} {:.3} (RGB)",
+                        exposure[0], exposure[1], exposure[2]
+                    );
+                }
+            }
+        }
+        image_io::write_rgb(path, width, height, &image)?;
         eprintln!("wrote {} ({width}x{height}, {} spp) in {:.2} s", path.display(), args.spp, result.seconds);
     }
     Ok(ExitCode::SUCCESS)

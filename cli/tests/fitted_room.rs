@@ -311,3 +311,73 @@ fn bad_edits_fail_cleanly_and_say_what_exists() {
     ]);
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
 }
+
+/// A copy of the fit output's files that rendering reads, with `result.json`'s view exposures
+/// replaced by `exposure` (the example room has one view, whose solved exposure is exactly 1).
+fn fit_with_exposure(dir: &Path, exposure: serde_json::Value) -> PathBuf {
+    let copy = dir.join("fit");
+    std::fs::create_dir_all(&copy).unwrap();
+    for f in ["materials.json", "lights.json"] {
+        std::fs::copy(fitted().join(f), copy.join(f)).unwrap();
+    }
+    let mut result: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fitted().join("result.json")).unwrap()).unwrap();
+    result["lights"]["exposure_rgb"] = exposure;
+    std::fs::write(copy.join("result.json"), result.to_string()).unwrap();
+    copy
+}
+
+#[test]
+fn an_input_view_renders_at_the_fits_exposure_and_a_camera_file_does_not() {
+    let dir = scratch().join("exposure");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let exposure = [1.6f32, 1.0, 0.5];
+    let fit = fit_with_exposure(&dir, serde_json::json!({ "view0": exposure }));
+    let render = |fit: &Path, out: &Path, camera: &[&str]| {
+        let mut args = vec!["render", fit.to_str().unwrap(), "--out", out.to_str().unwrap()];
+        args.extend_from_slice(camera);
+        args.extend_from_slice(&["--size", "40x30", "--spp", "2", "--quiet"]);
+        psc(&args)
+    };
+    let (unit, exposed) = (dir.join("unit.exr"), dir.join("exposed.exr"));
+    let o = render(fitted(), &unit, &["--view", "view0"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = render(&fit, &exposed, &["--view", "view0"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let (a, b) = (
+        psc_render::image_io::read_rgb(&unit, false).unwrap(),
+        psc_render::image_io::read_rgb(&exposed, false).unwrap(),
+    );
+    let lit = a.data.iter().filter(|p| p[1] > 1e-3).count();
+    assert!(lit > 100, "the view sees lit surfaces: {lit} pixels");
+    for (p, q) in a.data.iter().zip(&b.data) {
+        for c in 0..3 {
+            let want = p[c] * exposure[c];
+            assert!(
+                (q[c] - want).abs() <= 1e-6 * (1.0 + want.abs()),
+                "channel {c}: {} × {} ≠ {}",
+                p[c],
+                exposure[c],
+                q[c]
+            );
+        }
+    }
+    // The same camera from a file is not the photo's: no exposure.
+    let camera = dir.join("cam.json");
+    let scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(repo().join("examples/room/scene.json")).unwrap()).unwrap();
+    std::fs::write(&camera, scene["views"][0]["camera"].to_string()).unwrap();
+    let from_file = dir.join("file.exr");
+    let o = render(&fit, &from_file, &["--camera", camera.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let c = psc_render::image_io::read_rgb(&from_file, false).unwrap();
+    assert_eq!(a.data, c.data, "a camera file renders at exposure 1");
+    // An exposure that is not three positive numbers is refused before rendering.
+    let bad = fit_with_exposure(&dir.join("bad"), serde_json::json!({ "view0": [1.0, -2.0, 1.0] }));
+    let o = render(&bad, &dir.join("bad.exr"), &["--view", "view0"]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("exposure_rgb") && text(&o).contains("view0"), "{}", text(&o));
+    assert!(!dir.join("bad.exr").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -3,6 +3,7 @@
 //! that `psc render <fit-output>` renders the fitted room from any camera, relit (`--lights`)
 //! or edited (`--set`, [`crate::edit`]).
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde_json::Value;
@@ -19,6 +20,10 @@ pub struct FitOutput {
     pub materials: PathBuf,
     /// `lights.json`: the fitted radiances.
     pub lights: PathBuf,
+    /// Per input view name, the RGB exposure the fit solved for it (`result.json`'s
+    /// `lights.exposure_rgb`): the factor between a render of the fitted room from that view
+    /// and its photo. Empty for fits made before exposures (every view at 1).
+    pub exposures: BTreeMap<String, [f32; 3]>,
 }
 
 impl FitOutput {
@@ -63,13 +68,47 @@ impl FitOutput {
             scene,
             materials: file("materials.json")?,
             lights: file("lights.json")?,
+            exposures: exposures_of(&result).map_err(|e| format!("{}: {e}", result_path.display()))?,
         })
+    }
+
+    /// The fit's exposure of the scene view `view` (1 for a view it has none for).
+    pub fn exposure(&self, view: &str) -> [f32; 3] {
+        self.exposures.get(view).copied().unwrap_or([1.0; 3])
     }
 
     /// The fitted assignment.
     pub fn assignment(&self) -> Result<Assignment, AssignError> {
         Assignment::read(&self.materials)
     }
+}
+
+/// The per-view RGB exposures in a fit's `result.json` (`{"lights": {"exposure_rgb": {view:
+/// [r, g, b]}}}`); empty when the file or the entry is absent. A present but unreadable file,
+/// or an exposure that is not three finite positive numbers, is an error.
+pub fn read_exposures(result_path: &Path) -> Result<BTreeMap<String, [f32; 3]>, String> {
+    if !result_path.is_file() {
+        return Ok(BTreeMap::new());
+    }
+    let result = crate::json::read_file(result_path).map_err(|e| e.to_string())?;
+    exposures_of(&result).map_err(|e| format!("{}: {e}", result_path.display()))
+}
+
+fn exposures_of(result: &Value) -> Result<BTreeMap<String, [f32; 3]>, String> {
+    let Some(entry) = result.pointer("/lights/exposure_rgb") else { return Ok(BTreeMap::new()) };
+    let map = entry.as_object().ok_or("lights.exposure_rgb: expected {\"view\": [r, g, b], …}")?;
+    map.iter()
+        .map(|(view, value)| {
+            let rgb: Option<Vec<f32>> =
+                value.as_array().map(|a| a.iter().filter_map(Value::as_f64).map(|x| x as f32).collect());
+            match rgb.as_deref() {
+                Some(&[r, g, b]) if [r, g, b].iter().all(|x| x.is_finite() && *x > 0.0) => {
+                    Ok((view.clone(), [r, g, b]))
+                }
+                _ => Err(format!("lights.exposure_rgb: view '{view}': {value} is not three finite positive numbers")),
+            }
+        })
+        .collect()
 }
 
 /// The scene folder a fit's `result.json` names: as written (absolute, or relative to the

@@ -83,6 +83,8 @@ pub struct ViewRequest {
 pub struct OpenedView {
     pub scene: Scene,
     pub camera: Camera,
+    /// The scene view whose camera this is (None for a camera file).
+    pub view: Option<String>,
     pub width: usize,
     pub height: usize,
     /// One binding per part, in the order of `scene.mesh.part_names`.
@@ -178,11 +180,11 @@ pub fn open_view(
     let scene = Scene::load_with_progress(&req.scene, mesh_override.as_deref(), progress)?;
     let mut warnings = scene.warnings.clone();
 
-    let (spec, default_size, context) = match &req.camera {
+    let (spec, default_size, context, view) = match &req.camera {
         CameraChoice::File(path) => {
             let file = load_camera_file(path)?;
             let size = file.size.or_else(|| scene.views.first().map(|v| (v.width, v.height))).unwrap_or(FALLBACK_SIZE);
-            (file.camera, size, path.display().to_string())
+            (file.camera, size, path.display().to_string(), None)
         }
         choice => {
             let view = match choice {
@@ -192,7 +194,8 @@ pub fn open_view(
                 })?,
                 _ => scene.views.first().ok_or_else(|| OpenError::NoViews { scene: req.scene.clone() })?,
             };
-            (view.camera_spec.clone(), (view.width, view.height), format!("view '{}'", view.name))
+            let context = format!("view '{}'", view.name);
+            (view.camera_spec.clone(), (view.width, view.height), context, Some(view.name.clone()))
         }
     };
     let (width, height) = req.size.unwrap_or(default_size);
@@ -228,5 +231,5 @@ pub fn open_view(
     }
 
     let radiances = LightRadiances::resolve(&scene, &req.lights, &mut warnings)?;
-    Ok(OpenedView { scene, camera, width, height, materials, radiances, warnings })
+    Ok(OpenedView { scene, camera, view, width, height, materials, radiances, warnings })
 }

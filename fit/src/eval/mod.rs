@@ -177,33 +177,6 @@ impl FitFiles {
     }
 }
 
-/// The fit's RGB exposure per input view name, from `result.json`'s `lights.exposure_rgb`
-/// (`{view: [r, g, b]}`); empty when the file or the entry is absent. A present but unreadable
-/// file, or an exposure that is not three finite positive numbers, is an error.
-fn fitted_exposures(path: &Path) -> Result<BTreeMap<String, [f32; 3]>, EvalError> {
-    if !path.is_file() {
-        return Ok(BTreeMap::new());
-    }
-    let text = std::fs::read_to_string(path).map_err(|e| EvalError(format!("{}: {e}", path.display())))?;
-    let v: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| EvalError(format!("{}:{}:{}: {e}", path.display(), e.line(), e.column())))?;
-    let Some(entry) = v.pointer("/lights/exposure_rgb") else { return Ok(BTreeMap::new()) };
-    let bad = |what: String| EvalError(format!("{}: lights.exposure_rgb: {what}", path.display()));
-    let map = entry.as_object().ok_or_else(|| bad("expected {\"view\": [r, g, b], …}".into()))?;
-    map.iter()
-        .map(|(view, value)| {
-            let rgb: Option<Vec<f32>> =
-                value.as_array().map(|a| a.iter().filter_map(|x| x.as_f64()).map(|x| x as f32).collect());
-            match rgb.as_deref() {
-                Some(&[r, g, b]) if [r, g, b].iter().all(|x| x.is_finite() && *x > 0.0) => {
-                    Ok((view.clone(), [r, g, b]))
-                }
-                _ => Err(bad(format!("view '{view}': {value} is not three finite positive numbers"))),
-            }
-        })
-        .collect()
-}
-
 /// One rendered image compared with its truth.
 #[derive(Clone, Debug)]
 pub struct ImageResult {
@@ -374,7 +347,7 @@ pub fn evaluate(
     warnings.extend(truth.warnings.iter().cloned());
     let (fitted_lights, fitted_env) = backend::read_lights_file(&fit.lights, &model)?;
     let fitted_radiances = Radiances { lights: fitted_lights.clone(), environment: fitted_env };
-    let exposures = fitted_exposures(&fit.result)?;
+    let exposures = psc_runtime::fitted::read_exposures(&fit.result).map_err(EvalError)?;
     let assigned_parts = assigned_part_names(&fit.materials)?;
     let fitted_model = model.assigned_materials(&fit.materials, library)?;
     let graph_choice = graph_choices(&fit.materials, &truth.part_kinds, library)?;
