@@ -205,12 +205,12 @@ pub fn median_materials(views: &[ViewObservation], n_parts: usize) -> Vec<Materi
 /// Samples per pixel of the per-emitter renders of the initial estimate.
 const ESTIMATE_SPP: u32 = 16;
 
+/// Unit-radiance images of every emitter slot in every view, at the views' sizes:
+/// `[view][slot][pixel]`.
+pub type UnitRenders = Vec<Vec<Vec<[f32; 3]>>>;
+
 /// Per-view, per-slot renders at unit radiance with the renderer's materials: `[view][slot]`.
-pub fn unit_renders(
-    renderer: &Renderer,
-    views: &[ViewObservation],
-    seed: u64,
-) -> Result<Vec<Vec<Vec<[f32; 3]>>>, FitError> {
+pub fn unit_renders(renderer: &Renderer, views: &[ViewObservation], seed: u64) -> Result<UnitRenders, FitError> {
     views
         .iter()
         .map(|obs| {
@@ -230,10 +230,7 @@ pub fn unit_renders(
 
 /// One common RGB radiance for every slot, matching the photos' mean (see the module docs).
 /// Returns the radiance and the number of pixels it was estimated from.
-pub fn common_radiance(
-    views: &[ViewObservation],
-    renders: &[Vec<Vec<[f32; 3]>>],
-) -> Result<([f32; 3], usize), FitError> {
+pub fn common_radiance(views: &[ViewObservation], renders: &UnitRenders) -> Result<([f32; 3], usize), FitError> {
     let mut photo = [0.0f64; 3];
     let mut rendered = [0.0f64; 3];
     let mut count = 0usize;

@@ -29,10 +29,12 @@ use crate::targets::part_view;
 
 /// Solves every emitter's radiance jointly with a factor on every part's albedo and an exposure
 /// per view, under the renderer's current materials (see
-/// [`light_solve::solve_with_part_scales`]).
+/// [`light_solve::solve_with_part_scales`]), from two independent estimates of the unit renders
+/// so that their Monte Carlo noise does not bias the radiances.
 pub fn solve_lights(renderer: &Renderer, views: &[ViewObservation], seed: u64) -> Result<LightSolve, FitError> {
     let renders = lighting::unit_renders(renderer, views, seed)?;
-    light_solve::solve_with_part_scales(views, &renders)
+    let independent = lighting::unit_renders(renderer, views, psc_base::mix64(seed ^ 0x1d_e9e4_de47))?;
+    light_solve::solve_with_part_scales(views, &renders, Some(&independent))
 }
 
 /// What a part's re-fit reads that stays the same through every round.
