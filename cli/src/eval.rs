@@ -25,8 +25,10 @@ pub struct Args {
     out: PathBuf,
     /// The scene folder, with truth/.
     scene: PathBuf,
-    /// Samples per pixel of the evaluation renders (the truth images have 256).
-    #[arg(long, default_value_t = 64)]
+    /// Samples per pixel of the evaluation renders (the truth images have 256). Render noise
+    /// adds gradient energy that the contrast distance counts: at 32 spp the true materials
+    /// score 0.36–1.09 of the pixel median's contrast W1 on the dev scenes, at 128 spp 0.03–0.32.
+    #[arg(long, default_value_t = 128)]
     spp: u32,
     #[arg(long, default_value_t = 0)]
     seed: u64,

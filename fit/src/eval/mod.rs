@@ -132,7 +132,7 @@ pub struct EvalOptions {
 impl Default for EvalOptions {
     fn default() -> Self {
         EvalOptions {
-            spp: 64,
+            spp: 128,
             seed: 0,
             threads: None,
             geometries: vec![Geometry::Model, Geometry::Truth],
