@@ -116,6 +116,14 @@ impl PartLoss {
         self.combine(statistics, features)
     }
 
+    /// What graph selection ranks an exemplar by: the whole loss, with the feature term at the
+    /// exemplar's best orientation (see [`PartLoss::value_any_orientation`]). Both terms count:
+    /// the pattern alone was tried, and it chose graphs whose contrast the fit could not bring
+    /// down to the photo's (see `select.rs`).
+    pub fn selection_score(&self, image: &[[f32; 3]], scratch: &mut Scratch) -> f32 {
+        self.value_any_orientation(image, scratch).total
+    }
+
     /// The loss and its gradient with respect to every crop pixel (written to `grad`).
     pub fn value_and_grad(&self, image: &[[f32; 3]], scratch: &mut Scratch, grad: &mut Vec<[f32; 3]>) -> LossValue {
         grad.clear();
