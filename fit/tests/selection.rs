@@ -8,13 +8,14 @@
 //!
 //! `cargo test --release -p psc-fit --test selection -- --nocapture` prints the votes.
 
-use glam::Vec3;
+mod flat_view;
+
+use flat_view::flat_view;
 use psc_base::SplitMix64;
 use psc_fit::features::{FeatureConfig, Scratch};
-use psc_fit::layer::{FitPixel, MaterialState, PartView, Sampling, Workspace};
+use psc_fit::layer::{MaterialState, Sampling, Workspace};
 use psc_fit::loss::{LossWeights, PartLoss};
 use psc_fit::select::{select, SelectSettings};
-use psc_fit::shading::{LightSample, BINS};
 use psc_fit::uvmap::UvTransform;
 use psc_runtime::library::{default_library_root, Library};
 
@@ -28,34 +29,6 @@ const PANEL: [&str; 8] = [
     "quartz_surface",
     "subway_tiles",
 ];
-
-/// A `size`×`size` crop of a flat, evenly lit surface, `step` uv units per pixel.
-fn flat_view(size: usize, step: f32) -> PartView {
-    let light = LightSample::new(&[[0.4; 3]; BINS], Vec3::Z);
-    let pixels = (0..size * size)
-        .map(|i| FitPixel {
-            crop_index: i as u32,
-            uv: [(i % size) as f32 * step + 0.013, (i / size) as f32 * step + 0.029],
-            duv_dx: [step, 0.0],
-            duv_dy: [0.0, -step],
-            bitangent_sign: 1.0,
-            wo_local: Vec3::Z,
-            light: light.clone(),
-        })
-        .collect();
-    PartView {
-        width: size,
-        height: size,
-        origin: [0, 0],
-        factor: 1,
-        pixels,
-        weight: vec![1.0; size * size],
-        pattern_weight: vec![1.0; size * size],
-        target: vec![[0.0; 3]; size * size],
-        target_linear: vec![[0.0; 3]; size * size],
-        exposure: [1.0; 3],
-    }
-}
 
 #[test]
 fn selection_ranks_the_graph_that_made_the_photo_first_among_one_graph_per_family() {

@@ -7,43 +7,13 @@
 //! uses), once with the layer's adaptive sampling and once with one sample per pixel.
 //! `cargo test --release -p psc-fit --test supersampling -- --nocapture` prints the table.
 
-use glam::Vec3;
-use psc_fit::layer::{FitPixel, MaterialState, PartView, Sampling, Workspace};
+mod flat_view;
+
+use flat_view::flat_view;
+use psc_fit::layer::{MaterialState, PartView, Sampling, Workspace};
 use psc_fit::loss::Moments;
-use psc_fit::shading::{LightSample, BINS};
 use psc_fit::uvmap::UvTransform;
 use psc_runtime::library::{default_library_root, Library, Material};
-
-/// A 48×48 crop of a flat, evenly lit surface; one pixel covers 1/96 of a uv unit (a 1 m wall
-/// seen 1 cm per pixel).
-fn flat_view() -> PartView {
-    let (w, h) = (48usize, 48usize);
-    let light = LightSample::new(&[[0.4; 3]; BINS], Vec3::Z);
-    let step = 1.0 / 96.0;
-    let pixels = (0..w * h)
-        .map(|i| FitPixel {
-            crop_index: i as u32,
-            uv: [(i % w) as f32 * step + 0.013, (i / w) as f32 * step + 0.029],
-            duv_dx: [step, 0.0],
-            duv_dy: [0.0, -step],
-            bitangent_sign: 1.0,
-            wo_local: Vec3::Z,
-            light: light.clone(),
-        })
-        .collect();
-    PartView {
-        width: w,
-        height: h,
-        origin: [0, 0],
-        factor: 1,
-        pixels,
-        weight: vec![1.0; w * h],
-        pattern_weight: vec![1.0; w * h],
-        target: vec![[0.5; 3]; w * h],
-        target_linear: vec![[0.2; 3]; w * h],
-        exposure: [1.0; 3],
-    }
-}
 
 fn std_at(view: &PartView, material: &Material, log_scale: f32, sampling: Sampling) -> f32 {
     let state = MaterialState {
@@ -61,7 +31,8 @@ fn std_at(view: &PartView, material: &Material, log_scale: f32, sampling: Sampli
 #[test]
 fn adaptive_supersampling_tracks_a_box_filtered_reference_across_zoom() {
     let library = Library::load(&default_library_root()).unwrap();
-    let view = flat_view();
+    // One pixel covers 1/96 of a uv unit (a 1 m wall seen 1 cm per pixel).
+    let view = flat_view(48, 1.0 / 96.0);
     let reference = Sampling { density: 1e6, max_per_axis: 12 };
     let adaptive = Sampling::default();
     let single = Sampling { density: 0.0, max_per_axis: 1 };
