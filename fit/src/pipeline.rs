@@ -301,49 +301,16 @@ fn run(
     for round in 0..options.refit_rounds {
         renderer.set_materials(result.bindings(library)?)?;
         if radiances.is_none() {
-            progress.stage("solve lights", 1);
-            let solve = refit::solve_lights(&renderer, &views, options.seed ^ 0x5eed_0001 ^ round as u64)?;
-            progress.advance(1);
-            if solve.radiance.iter().all(|r| r.iter().all(|&c| c <= 0.0)) {
-                progress.note(&format!(
-                    "round {}: the light solve found no light; keeping the previous radiances",
-                    round + 1
-                ));
+            let seed = options.seed ^ 0x5eed_0001 ^ round as u64;
+            let label = format!("round {}", round + 1);
+            if !solve_and_apply(&renderer, &views, seed, &label, &mut result, progress)? {
                 break;
-            }
-            let change = relative_change(&result.radiance, &solve.radiance)
-                .max(relative_change(&result.exposure, &solve.exposure));
-            let lights: Vec<String> = result
-                .slot_names
-                .iter()
-                .zip(&solve.radiance)
-                .zip(&solve.share)
-                .map(|((n, r), s)| format!("{n} ({:.1}, {:.1}, {:.1}) carries {:.0}%", r[0], r[1], r[2], s * 100.0))
-                .collect();
-            progress.note(&format!(
-                "round {}: lights solved from {} pixels (relative rms {:.3}, {:.0}% outliers): {}; change {:.1}%{}",
-                round + 1,
-                solve.pixels,
-                solve.relative_rms[1],
-                solve.outliers * 100.0,
-                lights.join(", "),
-                change * 100.0,
-                exposure_note(&views, &solve.exposure)
-            ));
-            result.radiance = solve.radiance.clone();
-            result.exposure = solve.exposure.clone();
-            // The joint solve's albedo factors start the re-fit (which then refines them).
-            for (part, factor) in result.parts.iter_mut().zip(&solve.part_scales) {
-                if part.status != PartStatus::Unobserved {
-                    part.state.albedo_scale.iter_mut().zip(factor).for_each(|(s, f)| *s *= f);
-                }
             }
             result.light_source = format!(
                 "solved per light under the fitted materials (NNLS, robust), round {} of at most {}",
                 round + 1,
                 options.refit_rounds
             );
-            result.light_rounds.push(LightRound { solve, change });
         }
         progress.stage("light grids", views.len() as u64);
         let grids = lighting::view_grids(&renderer, &views, options.grid, options.seed ^ 0x5eed_0002)?;
@@ -363,7 +330,68 @@ fn run(
             break;
         }
     }
+    // Each round ends on the whole-part mean match, made in the shading layer (light grids),
+    // which undoes part of the solve's path-traced albedo factors (e.g. dev_1's barrel at
+    // 0.87 round after round). A last solve under the final materials, applied without a
+    // re-fit, leaves parts, lights and exposures as the path tracer sees them, which is how
+    // every render and export of the result shows them.
+    if radiances.is_none() && !result.light_rounds.is_empty() {
+        renderer.set_materials(result.bindings(library)?)?;
+        let seed = options.seed ^ 0x5eed_0003;
+        if solve_and_apply(&renderer, &views, seed, "final calibration", &mut result, progress)? {
+            result.light_source.push_str(", then a final solve of lights and part colours");
+        }
+        lap("final calibration", &mut result.timings);
+    }
     Ok(result)
+}
+
+/// One global light solve under the renderer's current materials, applied to `result`: the
+/// radiances, the views' exposures and every observed part's albedo factor, recorded as a
+/// light round. False (and nothing applied) when the solve found no light.
+fn solve_and_apply(
+    renderer: &Renderer,
+    views: &[ViewObservation],
+    seed: u64,
+    label: &str,
+    result: &mut FitResult,
+    progress: &dyn Progress,
+) -> Result<bool, FitError> {
+    progress.stage("solve lights", 1);
+    let solve = refit::solve_lights(renderer, views, seed)?;
+    progress.advance(1);
+    if solve.radiance.iter().all(|r| r.iter().all(|&c| c <= 0.0)) {
+        progress.note(&format!("{label}: the light solve found no light; keeping the previous radiances"));
+        return Ok(false);
+    }
+    let change =
+        relative_change(&result.radiance, &solve.radiance).max(relative_change(&result.exposure, &solve.exposure));
+    let lights: Vec<String> = result
+        .slot_names
+        .iter()
+        .zip(&solve.radiance)
+        .zip(&solve.share)
+        .map(|((n, r), s)| format!("{n} ({:.1}, {:.1}, {:.1}) carries {:.0}%", r[0], r[1], r[2], s * 100.0))
+        .collect();
+    progress.note(&format!(
+        "{label}: lights solved from {} pixels (relative rms {:.3}, {:.0}% outliers): {}; change {:.1}%{}",
+        solve.pixels,
+        solve.relative_rms[1],
+        solve.outliers * 100.0,
+        lights.join(", "),
+        change * 100.0,
+        exposure_note(views, &solve.exposure)
+    ));
+    result.radiance = solve.radiance.clone();
+    result.exposure = solve.exposure.clone();
+    // The joint solve's albedo factors (a re-fit, where one follows, refines them).
+    for (part, factor) in result.parts.iter_mut().zip(&solve.part_scales) {
+        if part.status != PartStatus::Unobserved {
+            part.state.albedo_scale.iter_mut().zip(factor).for_each(|(s, f)| *s *= f);
+        }
+    }
+    result.light_rounds.push(LightRound { solve, change });
+    Ok(true)
 }
 
 /// "; exposures view0 (r, g, b), …" for a solve of several views, else nothing (a single view's
