@@ -298,6 +298,8 @@ fn run(
         }
     }
     lap("match part means", &mut result.timings);
+    // Whether the last thing done to the materials is a light solve applied without a re-fit.
+    let mut calibrated = false;
     for round in 0..options.refit_rounds {
         renderer.set_materials(result.bindings(library)?)?;
         if radiances.is_none() {
@@ -311,6 +313,14 @@ fn run(
                 round + 1,
                 options.refit_rounds
             );
+            // A re-fit under lights that barely moved would change little, and would end on
+            // the layer's mean match again: the solve just applied stands as the calibration.
+            if result.light_rounds.last().is_some_and(|r| r.change < LIGHT_CONVERGED) {
+                progress.note(&format!("lights converged in round {}", round + 1));
+                calibrated = true;
+                lap(&format!("round {} (light solve)", round + 1), &mut result.timings);
+                break;
+            }
         }
         progress.stage("light grids", views.len() as u64);
         let grids = lighting::view_grids(&renderer, &views, options.grid, options.seed ^ 0x5eed_0002)?;
@@ -324,18 +334,13 @@ fn run(
             progress.advance(1);
         }
         lap(&format!("re-fit round {}", round + 1), &mut result.timings);
-        let converged = result.light_rounds.last().is_some_and(|r| r.change < LIGHT_CONVERGED);
-        if converged {
-            progress.note(&format!("lights converged after {} rounds", round + 1));
-            break;
-        }
     }
-    // Each round ends on the whole-part mean match, made in the shading layer (light grids),
+    // Each re-fit ends on the whole-part mean match, made in the shading layer (light grids),
     // which undoes part of the solve's path-traced albedo factors (e.g. dev_1's barrel at
     // 0.87 round after round). A last solve under the final materials, applied without a
     // re-fit, leaves parts, lights and exposures as the path tracer sees them, which is how
     // every render and export of the result shows them.
-    if radiances.is_none() && !result.light_rounds.is_empty() {
+    if radiances.is_none() && !result.light_rounds.is_empty() && !calibrated {
         renderer.set_materials(result.bindings(library)?)?;
         let seed = options.seed ^ 0x5eed_0003;
         if solve_and_apply(&renderer, &views, seed, "final calibration", &mut result, progress)? {

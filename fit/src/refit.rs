@@ -8,8 +8,8 @@
 //! `fit_pixels` pixels: on a large wall the window's light is not the part's light, and a scale
 //! fitted there is biased on the rest of the part. The match is exact in the statistic the
 //! photo shows (the mean sRGB value of the part), and cheap: one render of the part. It is
-//! made in the shading layer, so the pipeline ends with one more light solve, applied without
-//! a re-fit, to leave the parts' colours as the path tracer sees them.
+//! made in the shading layer, so the pipeline ends on a light solve applied without a re-fit,
+//! to leave the parts' colours as the path tracer sees them.
 
 use psc_render::Renderer;
 use psc_runtime::library::{Library, Material};

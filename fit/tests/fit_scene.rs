@@ -168,7 +168,7 @@ fn an_existing_output_folder_is_kept_unless_forced_and_refit_only_starts_from_it
     let mut refit_options = options.clone();
     refit_options.refit_rounds = 1;
     let refit = continue_fit(&scene, &library, None, &previous, Continue::RefitOnly, &refit_options, &Silent).unwrap();
-    assert_eq!(refit.light_rounds.len(), 2, "the refit solves the lights, then calibrates");
+    assert!(!refit.light_rounds.is_empty(), "the refit solves the lights");
     for (a, b) in refit.parts.iter().zip(&result.parts) {
         assert_eq!((&a.graph, &a.state.params, a.state.uv), (&b.graph, &b.state.params, b.state.uv), "{}", a.name);
     }
@@ -215,7 +215,7 @@ fn a_scene_without_lights_is_fitted_under_generated_ceiling_lights() {
     let result = fit_scene(&scene, &library, None, &small_options(), &Silent).unwrap();
     assert_eq!(result.slot_names.len(), scene.lights.len());
     assert!(result.slot_names.iter().all(|n| n.starts_with("auto")), "{:?}", result.slot_names);
-    assert_eq!(result.light_rounds.len(), 2, "the lights are solved (a round, then the final calibration)");
+    assert!(!result.light_rounds.is_empty(), "the lights are solved");
     let solved = &result.light_rounds[0].solve;
     for (name, r) in result.slot_names.iter().zip(&solved.radiance) {
         assert!(r.iter().all(|x| x.is_finite() && *x >= 0.0), "{name}: {r:?}");
@@ -296,7 +296,9 @@ fn the_fit_ends_with_part_colours_the_path_tracer_agrees_with() {
     let scene = Scene::load(&example).unwrap();
     let library = Library::load(&default_library_root()).unwrap();
     let result = fit_scene(&scene, &library, None, &small_options(), &Silent).unwrap();
-    assert_eq!(result.light_rounds.len(), 2, "one round, then the final calibration");
+    // The last solve was applied without a re-fit: the final calibration, or a round whose
+    // lights had converged.
+    let calibration = &result.light_rounds.last().expect("the lights are solved").solve;
 
     let mut renderer =
         Renderer::new(&scene, scene.mtl_materials(&mut Vec::new()), &LightRadiances::unit(&scene)).unwrap();
@@ -314,7 +316,7 @@ fn the_fit_ends_with_part_colours_the_path_tracer_agrees_with() {
         observed.iter().map(|&i| factors[i].iter().map(|f| f.ln().abs()).fold(0.0f32, f32::max)).sum::<f32>()
             / observed.len() as f32
     };
-    let (before, after) = (off(&result.light_rounds[1].solve.part_scales), off(&check.part_scales));
+    let (before, after) = (off(&calibration.part_scales), off(&check.part_scales));
     println!(
         "mean |ln factor| over {} parts: {before:.4} found by the calibration, {after:.4} after it",
         observed.len()
