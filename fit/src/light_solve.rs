@@ -97,17 +97,6 @@ fn usable_pixels(obs: &ViewObservation) -> Vec<usize> {
         .collect()
 }
 
-/// Solves the radiances from `renders` (and, when given, a second estimate of the same renders
-/// with an independent seed: see the module docs) with the materials they were rendered with
-/// held fixed.
-pub fn solve(
-    views: &[ViewObservation],
-    renders: &UnitRenders,
-    independent: Option<&UnitRenders>,
-) -> Result<LightSolve, FitError> {
-    solve_impl(views, renders, independent, Unknowns { part_scales: false, exposure: false })
-}
-
 /// Solves the radiances and, jointly, a factor on every part's albedo and an exposure per view:
 /// a pixel's model value is `e_view · s_part · Σ_k R_k I_k(p)`, minimised by alternating NNLS
 /// for `R` with closed-form weighted least-squares `s` per part and `e` per view (trilinear, so
@@ -115,25 +104,19 @@ pub fn solve(
 /// re-rendering after every change of the albedos this is exact for the direct light and first
 /// order for the indirect light, and costs no rendering: the re-fit rounds then only refine
 /// what the cached renders could not see.
+///
+/// `renders` and `independent` are two estimates of the same unit renders from independent
+/// seeds (see the module docs).
 pub fn solve_with_part_scales(
     views: &[ViewObservation],
     renders: &UnitRenders,
-    independent: Option<&UnitRenders>,
-) -> Result<LightSolve, FitError> {
-    solve_impl(views, renders, independent, Unknowns { part_scales: true, exposure: true })
-}
-
-fn solve_impl(
-    views: &[ViewObservation],
-    renders: &UnitRenders,
-    independent: Option<&UnitRenders>,
-    unknowns: Unknowns,
+    independent: &UnitRenders,
 ) -> Result<LightSolve, FitError> {
     let slots = renders.first().map_or(0, |r| r.len());
     if slots == 0 {
         return Err(FitError::Input("the scene has no lights to solve for".into()));
     }
-    for estimate in std::iter::once(renders).chain(independent) {
+    for estimate in [renders, independent] {
         if estimate.len() != views.len() || estimate.iter().any(|r| r.len() != slots) {
             return Err(FitError::Input(format!(
                 "the light solve has renders of {} views for {} views, or a different number of lights per view",
@@ -151,7 +134,7 @@ fn solve_impl(
     for (v, obs) in views.iter().enumerate() {
         for i in usable_pixels(obs) {
             let first = renders[v].iter().map(|img| img[i]);
-            let second = independent.map(|r| r[v].iter().map(|img| img[i]).collect::<Vec<_>>());
+            let second = Some(independent[v].iter().map(|img| img[i]).collect::<Vec<_>>());
             samples.push(obs.photo.linear[i], obs.geo.part[i] as usize, v, first, second);
         }
     }
@@ -161,7 +144,7 @@ fn solve_impl(
             samples.photo.len()
         )));
     }
-    Ok(solve_samples(&samples, unknowns))
+    Ok(solve_samples(&samples, Unknowns { part_scales: true, exposure: true }))
 }
 
 /// The solve's pixels: photo value, part, view, and the unit-radiance render of every slot

@@ -36,7 +36,7 @@ use crate::targets::part_view;
 pub fn solve_lights(renderer: &Renderer, views: &[ViewObservation], seed: u64) -> Result<LightSolve, FitError> {
     let renders = lighting::unit_renders(renderer, views, seed)?;
     let independent = lighting::unit_renders(renderer, views, psc_base::mix64(seed ^ 0x1d_e9e4_de47))?;
-    light_solve::solve_with_part_scales(views, &renders, Some(&independent))
+    light_solve::solve_with_part_scales(views, &renders, &independent)
 }
 
 /// What a part's re-fit reads that stays the same through every round.
