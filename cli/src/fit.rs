@@ -58,6 +58,11 @@ pub struct Args {
     /// Random exemplars per graph for selection.
     #[arg(long, default_value_t = 10)]
     exemplars: usize,
+    /// Graphs at the top of the selection's pattern vote that each run a start of the fit
+    /// (global UV search and a short run), beside the whole-loss vote's winner; the one that
+    /// reaches the lowest loss is fitted.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u16).range(1..=16))]
+    contenders: u16,
     /// Most gradient iterations per part.
     #[arg(long, default_value_t = 1000)]
     iterations: u32,
@@ -152,6 +157,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     let mut options = FitOptions { seed: args.seed, ..Default::default() };
     options.forced = args.graphs.iter().cloned().collect::<BTreeMap<_, _>>();
     options.select.exemplars = args.exemplars;
+    options.select.contenders = usize::from(args.contenders);
     options.fit.max_iterations = args.iterations;
     options.refit_rounds = args.refit_rounds;
     options.fit_pixels = args.fit_pixels.max(1);

@@ -29,6 +29,13 @@ pub struct LossValue {
     pub features: f32,
 }
 
+/// An exemplar's two selection scores (see [`PartLoss::selection_scores`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SelectionScores {
+    pub pattern: f32,
+    pub whole: f32,
+}
+
 /// Weighted per-channel mean and standard deviation.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Moments {
@@ -103,25 +110,21 @@ impl PartLoss {
         self.combine(statistics, features)
     }
 
-    /// [`PartLoss::value`] with the feature term at the candidate's best orientation (see
-    /// [`FeatureLoss::loss_any_orientation`]): for ranking graphs before their UV is searched.
-    pub fn value_any_orientation(&self, image: &[[f32; 3]], scratch: &mut Scratch) -> LossValue {
-        let m = Moments::of(image, &self.weight);
-        let statistics = self.statistics(&m);
-        let features = if self.weights.features > 0.0 {
-            self.features.loss_any_orientation(image, &self.target_features, scratch).unwrap_or(f32::INFINITY)
+    /// What graph selection ranks an exemplar by (see `select.rs`): its pattern, the feature
+    /// term at the exemplar's best orientation (see [`FeatureLoss::loss_any_orientation`]), as
+    /// PhotoScene ranks by its VGG loss, or the statistics where the region is too thin for any
+    /// level of the descriptor; and its whole loss, the statistics beside that pattern term.
+    pub fn selection_scores(&self, image: &[[f32; 3]], scratch: &mut Scratch) -> SelectionScores {
+        let statistics = self.statistics(&Moments::of(image, &self.weight));
+        let finite = |x: f32| if x.is_finite() { x } else { f32::INFINITY };
+        if self.weights.features > 0.0 && !self.features.is_empty() {
+            let pattern = finite(
+                self.features.loss_any_orientation(image, &self.target_features, scratch).unwrap_or(f32::INFINITY),
+            );
+            SelectionScores { pattern, whole: finite(self.combine(statistics, pattern).total) }
         } else {
-            0.0
-        };
-        self.combine(statistics, features)
-    }
-
-    /// What graph selection ranks an exemplar by: the whole loss, with the feature term at the
-    /// exemplar's best orientation (see [`PartLoss::value_any_orientation`]). Both terms count:
-    /// the pattern alone was tried, and it chose graphs whose contrast the fit could not bring
-    /// down to the photo's (see `select.rs`).
-    pub fn selection_score(&self, image: &[[f32; 3]], scratch: &mut Scratch) -> f32 {
-        self.value_any_orientation(image, scratch).total
+            SelectionScores { pattern: finite(statistics), whole: finite(self.combine(statistics, 0.0).total) }
+        }
     }
 
     /// The loss and its gradient with respect to every crop pixel (written to `grad`).

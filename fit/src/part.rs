@@ -18,7 +18,7 @@ use crate::lighting::ShadingGrid;
 use crate::loss::{LossValue, PartLoss};
 use crate::observe::ViewObservation;
 use crate::optim::Free;
-use crate::part_fit::{fit_part, FitSettings, Problem};
+use crate::part_fit::{fit_contest, fit_part, FitSettings, Problem};
 use crate::pipeline::FitOptions;
 use crate::result::{PartResult, PartStatus, PartTimings, PixelCounts};
 use crate::select::select;
@@ -40,7 +40,14 @@ pub(crate) fn summary(name: &str, r: &PartResult) -> String {
         _ => format!(
             "{name}: {} (top: {}) in view {}, loss {:.4} after {} iterations",
             r.graph,
-            r.top.iter().map(|t| t.graph.as_str()).collect::<Vec<_>>().join(", "),
+            r.top
+                .iter()
+                .map(|t| match t.start_loss {
+                    Some(l) => format!("{} {l:.4}", t.graph),
+                    None => t.graph.clone(),
+                })
+                .collect::<Vec<_>>()
+                .join(", "),
             r.view.as_deref().unwrap_or("-"),
             r.loss.total,
             r.iterations
@@ -156,7 +163,7 @@ pub(crate) fn fit_one_part(
     let continued = before.filter(|b| {
         matches!(b.status, PartStatus::Fitted | PartStatus::Forced) && forced.is_none_or(|g| *g == b.graph)
     });
-    let selection = match (forced, continued) {
+    let mut selection = match (forced, continued) {
         (Some(_), _) | (None, Some(_)) => None,
         (None, None) => {
             Some(select(library, &search_view, &search_loss, options.select, options.fit.search_sampling, seed, None)?)
@@ -167,37 +174,62 @@ pub(crate) fn fit_one_part(
         debug_dump(std::path::Path::new(&dir), &name, homogeneous, library, &search_view, sel, colour, options)?;
     }
     let started = Instant::now();
-    let graph_name = match (forced, continued, &selection) {
-        (Some(g), _, _) => g.clone(),
-        (None, Some(b), _) => b.graph.clone(),
-        (None, None, Some(s)) => s.ranking[0].graph.clone(),
-        (None, None, None) => unreachable!("selection runs unless the graph is forced or continued"),
+    let settings = match continued {
+        // Its UV transform was searched and refined already: a global search would throw that away.
+        Some(_) => FitSettings { starts: 1, start_iterations: 0, global_uv_search: false, ..options.fit },
+        None => options.fit,
     };
-    let graph_index = library.materials.iter().position(|m| m.name() == graph_name).expect("checked above");
-    let material = &library.materials[graph_index];
-    let starts: Vec<MaterialState> = match (&selection, continued) {
-        (_, Some(b)) => vec![b.state.clone()],
-        (Some(s), None) => s.exemplars_of(graph_index).take(options.fit.starts).map(|e| e.state.clone()).collect(),
-        (None, None) => vec![MaterialState {
-            params: material.graph.info.default_params(),
-            uv: UvTransform::default(),
-            albedo_scale: [1.0; 3],
-            roughness: DEFAULT_ROUGHNESS,
-        }],
-    };
-    let problem = Problem {
+    let problem_of = |material| Problem {
         material,
         fit_view: &fit_view,
         fit_loss: &fit_loss,
         search_view: &search_view,
         search_loss: &search_loss,
     };
-    let settings = match continued {
-        // Its UV transform was searched and refined already: a global search would throw that away.
-        Some(_) => FitSettings { starts: 1, start_iterations: 0, global_uv_search: false, ..options.fit },
-        None => options.fit,
+    let index_of = |graph: &str| library.materials.iter().position(|m| m.name() == graph).expect("checked above");
+    let (graph_index, fit) = match (forced, continued, &mut selection) {
+        (None, None, Some(sel)) => {
+            // The votes propose, the fit disposes: random exemplars judge a graph at random
+            // parameters and scale, a start of the fit at its searched UV and fitted
+            // parameters, colour and contrast.
+            let contenders = sel.contenders(library, options.select.contenders);
+            let problems: Vec<(Problem, Vec<MaterialState>)> = contenders
+                .iter()
+                .map(|&(g, vote)| {
+                    let starts = vote.exemplars_of(g).take(settings.starts).map(|e| e.state.clone()).collect();
+                    (problem_of(&library.materials[g]), starts)
+                })
+                .collect();
+            let contest = fit_contest(&problems, &settings, Free::ALL)?;
+            let contenders: Vec<usize> = contenders.iter().map(|&(g, _)| g).collect();
+            for (&g, &loss) in contenders.iter().zip(&contest.start_losses) {
+                if let Some(r) = sel.pattern.ranking.iter_mut().find(|r| r.graph == library.materials[g].name()) {
+                    r.start_loss = Some(loss);
+                }
+            }
+            (contenders[contest.winner], contest.fit)
+        }
+        _ => {
+            let graph_index = match (forced, continued) {
+                (Some(g), _) => index_of(g),
+                (None, Some(b)) => index_of(&b.graph),
+                (None, None) => unreachable!("selection runs unless the graph is forced or continued"),
+            };
+            let material = &library.materials[graph_index];
+            let starts = match continued {
+                Some(b) => vec![b.state.clone()],
+                None => vec![MaterialState {
+                    params: material.graph.info.default_params(),
+                    uv: UvTransform::default(),
+                    albedo_scale: [1.0; 3],
+                    roughness: DEFAULT_ROUGHNESS,
+                }],
+            };
+            (graph_index, fit_part(&problem_of(material), &starts, &settings, Free::ALL)?)
+        }
     };
-    let fit = fit_part(&problem, &starts, &settings, Free::ALL)?;
+    let material = &library.materials[graph_index];
+    let graph_name = material.name().to_string();
     // The output keeps the graph's roughness map, scaled to the fitted part-wide value.
     fit_view.render(material, &fit.state, options.fit.sampling, &mut ws)?;
     let map_mean = ws.channel_mean(psc_compiler::Channel::Roughness);
@@ -209,7 +241,15 @@ pub(crate) fn fit_one_part(
     };
     result.graph = graph_name;
     result.top = match (selection, continued) {
-        (Some(s), _) => s.ranking.into_iter().take(3).collect(),
+        // The pattern vote's top three and every contender.
+        (Some(s), _) => s
+            .pattern
+            .ranking
+            .into_iter()
+            .enumerate()
+            .filter(|(i, r)| *i < 3 || r.start_loss.is_some())
+            .map(|(_, r)| r)
+            .collect(),
         (None, Some(b)) => b.top.clone(),
         (None, None) => Vec::new(),
     };
@@ -291,7 +331,7 @@ fn debug_dump(
         &mut ws,
     )?;
     put(1, &ws.image);
-    let best = &selection.exemplars[0];
+    let best = &selection.pattern.exemplars[0];
     view.render(&library.materials[best.graph], &best.state, options.fit.search_sampling, &mut ws)?;
     put(2, &ws.image);
     std::fs::create_dir_all(dir).map_err(|e| FitError::Output(e.to_string()))?;

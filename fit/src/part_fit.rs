@@ -83,45 +83,66 @@ pub struct Problem<'a> {
     pub search_loss: &'a PartLoss,
 }
 
-/// Fits `problem.material` from the given starting states (parameters and UV; the first is
-/// the most promising).
-pub fn fit_part(
+/// One start of a fit: its global UV search (when asked) and its short run.
+pub struct Started {
+    run: Run,
+    uv_candidates: usize,
+}
+
+impl Started {
+    /// The best loss of the start's short run.
+    pub fn loss(&self) -> f32 {
+        self.run.best_loss.total
+    }
+}
+
+/// Runs one start from `state`: a global UV search when `free.uv` and the settings ask for it
+/// (or else a colour match), then `settings.start_iterations` gradient steps.
+pub fn start(
     problem: &Problem,
-    starts: &[MaterialState],
+    state: &MaterialState,
+    settings: &FitSettings,
+    free: Free,
+    ws: &mut Workspace,
+    scratch: &mut Scratch,
+) -> Result<Started, FitError> {
+    let mut state = state.clone();
+    let mut uv_candidates = 0;
+    if free.uv && settings.global_uv_search {
+        let (found, n) = search::global(
+            problem.material,
+            problem.search_view,
+            problem.search_loss,
+            &state,
+            settings.search_sampling,
+        )?;
+        uv_candidates += n;
+        state.uv = found.uv;
+        state.albedo_scale = found.albedo_scale;
+    } else if free.appearance {
+        problem.fit_view.render(problem.material, &state, settings.sampling, ws)?;
+        state.albedo_scale = problem.fit_view.matched_albedo_scale(&state, ws);
+    }
+    let mut run = Run::new(problem, state, settings, free);
+    run.iterate(problem, settings.start_iterations, settings, ws, scratch)?;
+    Ok(Started { run, uv_candidates })
+}
+
+/// Continues the best of `starts` (all of `problem.material`) to the end of the fit.
+pub fn finish(
+    problem: &Problem,
+    starts: Vec<Started>,
     settings: &FitSettings,
     free: Free,
 ) -> Result<PartFit, FitError> {
     let mut ws = Workspace::default();
     let mut scratch = Scratch::default();
-    let mut uv_candidates = 0;
-    let mut runs = Vec::new();
-    for start in starts.iter().take(settings.starts.max(1)) {
-        let mut state = start.clone();
-        if free.uv && settings.global_uv_search {
-            let (found, n) = search::global(
-                problem.material,
-                problem.search_view,
-                problem.search_loss,
-                &state,
-                settings.search_sampling,
-            )?;
-            uv_candidates += n;
-            state.uv = found.uv;
-            state.albedo_scale = found.albedo_scale;
-        } else if free.appearance {
-            problem.fit_view.render(problem.material, &state, settings.sampling, &mut ws)?;
-            state.albedo_scale = problem.fit_view.matched_albedo_scale(&state, &ws);
-        }
-        let run = Run::new(problem, state, settings, free);
-        runs.push(run);
-    }
-    let mut start_losses = Vec::new();
-    for run in runs.iter_mut() {
-        run.iterate(problem, settings.start_iterations, settings, &mut ws, &mut scratch)?;
-        start_losses.push(run.best_loss.total);
-    }
-    let mut run = runs
+    let start_losses: Vec<f32> = starts.iter().map(Started::loss).collect();
+    let mut uv_candidates: usize = starts.iter().map(|s| s.uv_candidates).sum();
+    // Ties go to the earlier start.
+    let mut run = starts
         .into_iter()
+        .map(|s| s.run)
         .reduce(|a, b| if b.best_loss.total < a.best_loss.total { b } else { a })
         .expect("at least one start");
     let mut stopped_early = false;
@@ -148,6 +169,63 @@ pub fn fit_part(
         uv_candidates,
         start_losses,
     })
+}
+
+/// Fits `problem.material` from the given starting states (parameters and UV; the first is
+/// the most promising): every start (at most `settings.starts`) runs, the best continues.
+pub fn fit_part(
+    problem: &Problem,
+    starts: &[MaterialState],
+    settings: &FitSettings,
+    free: Free,
+) -> Result<PartFit, FitError> {
+    let mut ws = Workspace::default();
+    let mut scratch = Scratch::default();
+    let started = starts
+        .iter()
+        .take(settings.starts.max(1))
+        .map(|s| start(problem, s, settings, free, &mut ws, &mut scratch))
+        .collect::<Result<Vec<_>, _>>()?;
+    finish(problem, started, settings, free)
+}
+
+/// What a contest between graphs decided.
+pub struct Contest {
+    /// Index of the winner among the contenders.
+    pub winner: usize,
+    /// Each contender's loss after its first start.
+    pub start_losses: Vec<f32>,
+    pub fit: PartFit,
+}
+
+/// Fits the best of several graphs: each contender (a problem with its starting states, most
+/// promising first) runs its first start; the contender whose start reaches the lowest loss
+/// runs its remaining starts and continues to the end of the fit. Ties go to the earlier
+/// contender.
+pub fn fit_contest(
+    contenders: &[(Problem, Vec<MaterialState>)],
+    settings: &FitSettings,
+    free: Free,
+) -> Result<Contest, FitError> {
+    let mut ws = Workspace::default();
+    let mut scratch = Scratch::default();
+    let mut firsts = Vec::with_capacity(contenders.len());
+    for (problem, starts) in contenders {
+        let first = starts.first().ok_or_else(|| FitError::Input("a contender without a start".into()))?;
+        firsts.push(start(problem, first, settings, free, &mut ws, &mut scratch)?);
+    }
+    let start_losses: Vec<f32> = firsts.iter().map(Started::loss).collect();
+    let winner = (0..start_losses.len())
+        .reduce(|a, b| if start_losses[b] < start_losses[a] { b } else { a })
+        .ok_or_else(|| FitError::Input("a contest without contenders".into()))?;
+    let first = firsts.swap_remove(winner);
+    let (problem, starts) = &contenders[winner];
+    let mut started = vec![first];
+    for s in starts.iter().take(settings.starts.max(1)).skip(1) {
+        started.push(start(problem, s, settings, free, &mut ws, &mut scratch)?);
+    }
+    let fit = finish(problem, started, settings, free)?;
+    Ok(Contest { winner, start_losses, fit })
 }
 
 /// One optimisation run: Adam's state and the best state seen.

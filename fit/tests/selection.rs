@@ -1,12 +1,13 @@
 //! Graph selection recovers the graph that made a photo: the target is a library graph at its
-//! default parameters and a random UV transform, rendered through an evenly lit crop; selection
-//! then ranks a panel of graphs, one per family, that includes it, and must place it first.
-//! The panel holds the graphs that won on plain and faint parts of the dev scenes (smooth
-//! leather, textured plastic, quartz, plaster) beside planks, bricks, stripes and tiles.
-//! (Scored by the pattern alone, selection ranked oak planks second to smooth leather here
-//! once in six: see `select.rs`.)
+//! default parameters and a random UV transform, rendered through an evenly lit crop; the vote
+//! ranks a panel of graphs, one per family, that includes it, and must place it among the
+//! contenders (the pattern vote's top three and the whole-loss vote's winner); the contest
+//! between them (a start of the fit each) must then
+//! choose it. The panel holds the graphs that won on plain and faint parts of the dev scenes
+//! (smooth leather, textured plastic, quartz, plaster) beside planks, bricks, stripes and tiles.
 //!
-//! `cargo test --release -p psc-fit --test selection -- --nocapture` prints the votes.
+//! `cargo test --release -p psc-fit --test selection -- --nocapture` prints the votes and the
+//! contest.
 
 mod flat_view;
 
@@ -15,6 +16,8 @@ use psc_base::SplitMix64;
 use psc_fit::features::{FeatureConfig, Scratch};
 use psc_fit::layer::{MaterialState, Sampling, Workspace};
 use psc_fit::loss::{LossWeights, PartLoss};
+use psc_fit::optim::Free;
+use psc_fit::part_fit::{fit_contest, FitSettings, Problem};
 use psc_fit::select::{select, SelectSettings};
 use psc_fit::uvmap::UvTransform;
 use psc_runtime::library::{default_library_root, Library};
@@ -31,7 +34,7 @@ const PANEL: [&str; 8] = [
 ];
 
 #[test]
-fn selection_ranks_the_graph_that_made_the_photo_first_among_one_graph_per_family() {
+fn the_vote_proposes_and_the_contest_chooses_the_graph_that_made_the_photo() {
     let library = Library::load(&default_library_root()).expect("the graph library compiles");
     let panel: Vec<usize> = PANEL
         .iter()
@@ -45,6 +48,9 @@ fn selection_ranks_the_graph_that_made_the_photo_first_among_one_graph_per_famil
         .collect();
     // PhotoScene's 21 voters of 71 graphs, for a library of 24.
     let settings = SelectSettings { k: Some(7), ..SelectSettings::default() };
+    // The contest alone: each contender's first start decides, and the winner stops there.
+    let fit =
+        FitSettings { starts: 1, max_iterations: FitSettings::default().start_iterations, ..FitSettings::default() };
     let mut wrong = Vec::new();
     for (target_index, &target_graph) in panel.iter().enumerate().take(3) {
         let material = &library.materials[target_graph];
@@ -64,16 +70,40 @@ fn selection_ranks_the_graph_that_made_the_photo_first_among_one_graph_per_famil
             let mut scratch = Scratch::default();
             let loss = PartLoss::new(&view, LossWeights::default(), &FeatureConfig::default(), &mut scratch).unwrap();
             let selection = select(&library, &view, &loss, settings, Sampling::default(), seed, Some(&panel)).unwrap();
-            let votes: Vec<String> =
-                selection.ranking.iter().take(4).map(|r| format!("{} {:.1}", r.graph, r.votes)).collect();
-            println!("{} (seed {seed}): {}", material.name(), votes.join(", "));
-            let place = selection.ranking.iter().position(|r| r.graph == material.name());
-            if place != Some(0) {
-                wrong.push(format!("{} (seed {seed}): ranked {place:?}", material.name()));
+            let contenders = selection.contenders(&library, settings.contenders);
+            let problems: Vec<(Problem, Vec<MaterialState>)> = contenders
+                .iter()
+                .map(|&(g, vote)| {
+                    let problem = Problem {
+                        material: &library.materials[g],
+                        fit_view: &view,
+                        fit_loss: &loss,
+                        search_view: &view,
+                        search_loss: &loss,
+                    };
+                    (problem, vote.exemplars_of(g).take(fit.starts).map(|e| e.state.clone()).collect())
+                })
+                .collect();
+            let contest = fit_contest(&problems, &fit, Free::ALL).unwrap();
+            let contenders: Vec<usize> = contenders.iter().map(|&(g, _)| g).collect();
+            let standings: Vec<String> = contenders
+                .iter()
+                .zip(&contest.start_losses)
+                .map(|(&g, l)| format!("{} (after the start {l:.4})", library.materials[g].name()))
+                .collect();
+            println!("{} (seed {seed}): {}", material.name(), standings.join(", "));
+            if !contenders.contains(&target_graph) {
+                wrong.push(format!("{} (seed {seed}): not among the contenders", material.name()));
+            } else if contenders[contest.winner] != target_graph {
+                wrong.push(format!(
+                    "{} (seed {seed}): the contest chose {}",
+                    material.name(),
+                    library.materials[contenders[contest.winner]].name()
+                ));
             }
         }
     }
-    assert!(wrong.is_empty(), "selection ranked the target's graph below first: {wrong:?}");
+    assert!(wrong.is_empty(), "selection missed the target's graph: {wrong:?}");
 }
 
 /// A crop too thin for any level of the feature descriptor still ranks its candidates, by the
@@ -95,8 +125,34 @@ fn a_region_too_thin_for_the_features_is_ranked_by_its_statistics() {
     };
     let mut ws = Workspace::default();
     view.render(material, &state, Sampling::default(), &mut ws).unwrap();
-    let score = loss.selection_score(&ws.image, &mut scratch);
+    let score = loss.selection_scores(&ws.image, &mut scratch).pattern;
     let statistics = loss.value(&ws.image, &mut scratch).statistics;
     assert!(score > 0.0 && score.is_finite(), "score {score}");
     assert_eq!(score, statistics);
+}
+
+/// The contenders are the pattern vote's top `n` and, once, the whole-loss vote's winner.
+#[test]
+fn the_contenders_are_the_pattern_votes_top_and_the_whole_loss_winner() {
+    use psc_fit::select::{Ranked, Selection, Vote};
+    let library = Library::load(&default_library_root()).expect("the graph library compiles");
+    let ranked = |names: &[&str]| Vote {
+        ranking: names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| Ranked { graph: n.to_string(), votes: 10.0 - i as f64, best_loss: 0.1, start_loss: None })
+            .collect(),
+        exemplars: Vec::new(),
+    };
+    let index = |name: &str| library.materials.iter().position(|m| m.name() == name).unwrap();
+    let pattern = ["oak_planks", "english_bond", "striped_rug", "plaster"];
+    let selection = Selection { pattern: ranked(&pattern), whole: ranked(&["plaster", "oak_planks"]), k: 3 };
+    let got: Vec<usize> = selection.contenders(&library, 3).iter().map(|&(g, _)| g).collect();
+    let want: Vec<usize> = ["oak_planks", "english_bond", "striped_rug", "plaster"].map(index).to_vec();
+    assert_eq!(got, want, "the whole-loss winner joins after the pattern vote's top three");
+    let selection = Selection { pattern: ranked(&pattern), whole: ranked(&["english_bond", "plaster"]), k: 3 };
+    let got: Vec<usize> = selection.contenders(&library, 3).iter().map(|&(g, _)| g).collect();
+    assert_eq!(got, ["oak_planks", "english_bond", "striped_rug"].map(index).to_vec(), "no contender twice");
+    let got: Vec<usize> = selection.contenders(&library, 1).iter().map(|&(g, _)| g).collect();
+    assert_eq!(got, ["oak_planks", "english_bond"].map(index).to_vec(), "one from each vote");
 }

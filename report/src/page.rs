@@ -270,10 +270,11 @@ fn selection(part: &Part, detail: &Value) -> String {
                 format!("{}{mark}", esc(g)),
                 t.get("votes").map(value).unwrap_or_default(),
                 t.get("best_loss").map(value).unwrap_or_default(),
+                t.get("start_loss").map(value).unwrap_or_default(),
             ]
         })
         .collect();
-    let mut s = table(&["#", "graph", "votes", "best loss"], &rows);
+    let mut s = table(&["#", "graph", "votes", "best exemplar loss", "loss after a start of the fit"], &rows);
     if !top.iter().any(|t| t.get("graph").and_then(Value::as_str) == Some(chosen)) {
         let _ = write!(s, "<p>Chosen: <b>{}</b> (not among the alternatives above).</p>", esc(chosen));
     }
