@@ -134,9 +134,9 @@ pub fn finish(
     starts: Vec<Started>,
     settings: &FitSettings,
     free: Free,
+    ws: &mut Workspace,
+    scratch: &mut Scratch,
 ) -> Result<PartFit, FitError> {
-    let mut ws = Workspace::default();
-    let mut scratch = Scratch::default();
     let start_losses: Vec<f32> = starts.iter().map(Started::loss).collect();
     let mut uv_candidates: usize = starts.iter().map(|s| s.uv_candidates).sum();
     // Ties go to the earlier start.
@@ -148,7 +148,7 @@ pub fn finish(
     let mut stopped_early = false;
     while run.iterations < settings.max_iterations {
         let chunk = settings.search_every.max(1).min(settings.max_iterations - run.iterations);
-        run.iterate(problem, chunk, settings, &mut ws, &mut scratch)?;
+        run.iterate(problem, chunk, settings, ws, scratch)?;
         if run.stalled(settings) {
             stopped_early = true;
             break;
@@ -157,7 +157,7 @@ pub fn finish(
             uv_candidates += run.local_uv_search(problem, settings)?;
         }
         if free.params {
-            run.discrete_search(problem, settings, &mut ws, &mut scratch)?;
+            run.discrete_search(problem, settings, ws, scratch)?;
         }
     }
     Ok(PartFit {
@@ -186,7 +186,7 @@ pub fn fit_part(
         .take(settings.starts.max(1))
         .map(|s| start(problem, s, settings, free, &mut ws, &mut scratch))
         .collect::<Result<Vec<_>, _>>()?;
-    finish(problem, started, settings, free)
+    finish(problem, started, settings, free, &mut ws, &mut scratch)
 }
 
 /// What a contest between graphs decided.
@@ -224,7 +224,7 @@ pub fn fit_contest(
     for s in starts.iter().take(settings.starts.max(1)).skip(1) {
         started.push(start(problem, s, settings, free, &mut ws, &mut scratch)?);
     }
-    let fit = finish(problem, started, settings, free)?;
+    let fit = finish(problem, started, settings, free, &mut ws, &mut scratch)?;
     Ok(Contest { winner, start_losses, fit })
 }
 
