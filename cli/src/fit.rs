@@ -18,7 +18,7 @@ use psc_runtime::assign::Assignment;
 use psc_runtime::library::{default_library_root, Library};
 
 use crate::progress::Drawer;
-use crate::{checks, Failure};
+use crate::{checks, Error, Failure};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -121,9 +121,23 @@ impl FitProgress<'_> {
     }
 }
 
-pub fn run(args: Args) -> Result<ExitCode, Failure> {
+pub fn run(args: Args) -> Result<ExitCode, Error> {
     if let Some(n) = args.threads {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().map_err(|e| Failure(e.to_string()))?;
+    }
+    // Sizes are checked before any work: a bake past the texel limit would abort on its
+    // allocation after minutes of fitting.
+    if args.texture_size > 0 {
+        checks::bake_size("--texture-size", args.texture_size)?;
+    }
+    if args.render_spp > 0 {
+        psc_base::limits::check_count(
+            "samples per pixel",
+            u64::from(args.render_spp),
+            psc_base::limits::MAX_SPP,
+            "samples",
+        )
+        .map_err(|e| checks::over_limit("--render-spp", e))?;
     }
     let started = Instant::now();
     let scene = Scene::load(&args.scene)?;
@@ -142,7 +156,8 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
                 return Err(Failure(format!(
                     "--lights must give every light of the scene and no other: {}",
                     warnings.join("; ")
-                )));
+                ))
+                .into());
             }
             Some(r)
         }

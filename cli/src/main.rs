@@ -109,7 +109,7 @@ fn main() -> ExitCode {
         Command::Bake(args) => bake::run(args),
         Command::Library(args) => library::run(args),
         Command::Render(args) => render::run(args),
-        Command::Fit(args) => fit::run(args).map_err(Error::from),
+        Command::Fit(args) => fit::run(args),
         Command::Eval(args) => eval::run(args).map_err(Error::from),
         Command::Export(args) => export::run(args),
         Command::Report(args) => report::run(args).map_err(Error::from),

@@ -1,5 +1,6 @@
 //! `psc fit` on bad input, as a user meets it: every case ends with a clear message naming
-//! the problem, exit code 1, no panic, and no output folder (nor a staging folder beside it).
+//! the problem, exit code 1 (2 for an option past its limit, as for every usage error), no
+//! panic, and no output folder (nor a staging folder beside it).
 //! Each case is a scratch copy of the bundled example room with one thing broken.
 
 use std::path::{Path, PathBuf};
@@ -156,5 +157,24 @@ fn resume_or_refit_only_without_an_earlier_fit() {
     for flag in ["--resume", "--refit-only"] {
         let err = fails(&s, &[flag]);
         assert!(err.contains("result.json") && err.contains("earlier `psc fit`"), "{flag}: {err}");
+    }
+}
+
+/// Sizes past the documented limits are usage errors (exit 2) before any work: a bake of
+/// 10⁸×10⁸ texels used to abort on its allocation after the whole fit.
+#[test]
+fn sizes_past_the_limits_are_refused_before_any_work() {
+    let s = room("huge");
+    for (option, value) in [("--texture-size", "100000000"), ("--render-spp", "4000000000")] {
+        let run = Command::new(env!("CARGO_BIN_EXE_psc"))
+            .args(["fit", s.join("room").to_str().unwrap(), "--out", s.join("out").to_str().unwrap(), "--quiet"])
+            .args([option, value])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{option} {value}: {stderr}");
+        assert!(stderr.contains(option) && stderr.contains("the limit is"), "{stderr}");
+        assert!(!stderr.contains("panicked") && !stderr.contains("memory allocation"), "{stderr}");
+        assert!(!s.join("out").exists(), "{option}: an output folder was made");
     }
 }
