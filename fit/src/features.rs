@@ -182,6 +182,13 @@ impl fmt::Display for FeatureError {
 
 impl std::error::Error for FeatureError {}
 
+/// Robust estimate of the pixel-noise standard deviation of a plane (Immerkær's mask, median
+/// absolute response) over the pixels whose whole 3×3 window has a positive weight; 0 when
+/// there are none. The estimate the feature loss makes of a target's noise, for other losses.
+pub fn estimate_noise_sigma(plane: &[f32], weight: &[f32], width: usize, height: usize) -> f32 {
+    noise::estimate_sigma(plane, weight, width, height, &mut Vec::new())
+}
+
 /// Which entries a descriptor has; two descriptors compare only with equal layouts.
 #[derive(Clone, Debug, PartialEq)]
 struct Layout {

@@ -12,6 +12,7 @@
 #![forbid(unsafe_code)]
 
 pub mod align;
+pub mod contrast;
 pub mod error;
 pub mod eval;
 pub mod features;

@@ -1,11 +1,18 @@
 //! Losses between a rendered crop and the photo: PhotoScene's statistics loss (masked
-//! per-channel mean and standard deviation, L1) and the feature loss of
-//! [`crate::features`], weighted.
+//! per-channel mean and standard deviation, L1), the feature loss of [`crate::features`] and
+//! the contrast loss of [`crate::contrast`], weighted.
+//!
+//! The photo's pixel noise adds to its standard deviation, and a rendered candidate has none:
+//! matching the two would ask a plain part for a texture as strong as the noise. So the
+//! standard-deviation term has a dead zone, as the feature loss's bands do: a candidate whose
+//! deviation lies between √(σ_photo² − σ_noise²) and σ_photo (per channel, the noise estimated
+//! on the crop) is not penalised.
 
 use serde::Serialize;
 
+use crate::contrast::{ContrastLoss, ContrastScratch};
 use crate::error::FitError;
-use crate::features::{Descriptor, FeatureConfig, FeatureLoss, Region, Scratch};
+use crate::features::{estimate_noise_sigma, Descriptor, FeatureConfig, FeatureLoss, Region, Scratch};
 use crate::layer::PartView;
 
 /// Weights of the loss terms.
@@ -13,13 +20,20 @@ use crate::layer::PartView;
 pub struct LossWeights {
     pub statistics: f32,
     pub features: f32,
+    /// Results written before the contrast term existed read as 0 (their fits had none).
+    #[serde(default)]
+    pub contrast: f32,
 }
 
 impl Default for LossWeights {
     fn default() -> Self {
-        LossWeights { statistics: 1.0, features: 1.0 }
+        LossWeights { statistics: 1.0, features: 1.0, contrast: CONTRAST_WEIGHT }
     }
 }
+
+/// The contrast term's weight: its value is a mean gradient-magnitude difference of the luma,
+/// one channel where the statistics term sums three, so it weighs as much as they do.
+const CONTRAST_WEIGHT: f32 = 3.0;
 
 /// The terms of one evaluation.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
@@ -27,6 +41,8 @@ pub struct LossValue {
     pub total: f32,
     pub statistics: f32,
     pub features: f32,
+    #[serde(default)]
+    pub contrast: f32,
 }
 
 /// An exemplar's two selection scores (see [`PartLoss::selection_scores`]).
@@ -70,8 +86,12 @@ pub struct PartLoss {
     weight: Vec<f32>,
     total_weight: f32,
     target: Moments,
+    /// Per channel, the lowest standard deviation the photo's may stand for once its noise is
+    /// taken out (the lower end of the dead zone).
+    target_std_floor: [f32; 3],
     features: FeatureLoss,
     target_features: Descriptor,
+    contrast: ContrastLoss,
 }
 
 impl PartLoss {
@@ -84,13 +104,22 @@ impl PartLoss {
         let region = Region { width: view.width, height: view.height, weight: view.pattern_weight.clone() };
         let features = FeatureLoss::new(config, &region).map_err(feature_error)?;
         let target_features = features.describe(&view.target, scratch).map_err(feature_error)?;
+        let target = Moments::of(&view.target, &view.weight);
+        let target_std_floor = std::array::from_fn(|c| {
+            let plane: Vec<f32> = view.target.iter().map(|p| p[c]).collect();
+            let noise = estimate_noise_sigma(&plane, &view.weight, view.width, view.height);
+            (target.std[c].powi(2) - noise * noise).max(0.0).sqrt()
+        });
+        let contrast = ContrastLoss::new(view.width, view.height, &view.pattern_weight, &view.target);
         Ok(PartLoss {
             weights,
             total_weight: view.total_weight().max(1e-6),
             weight: view.weight.clone(),
-            target: Moments::of(&view.target, &view.weight),
+            target,
+            target_std_floor,
             features,
             target_features,
+            contrast,
         })
     }
 
@@ -107,7 +136,16 @@ impl PartLoss {
         } else {
             0.0
         };
-        self.combine(statistics, features)
+        let contrast = self.contrast_value(image);
+        self.combine(statistics, features, contrast)
+    }
+
+    fn contrast_value(&self, image: &[[f32; 3]]) -> f32 {
+        if self.weights.contrast > 0.0 {
+            self.contrast.value(image, &mut ContrastScratch::default())
+        } else {
+            0.0
+        }
     }
 
     /// What graph selection ranks an exemplar by (see `select.rs`): its pattern, the feature
@@ -116,14 +154,18 @@ impl PartLoss {
     /// level of the descriptor; and its whole loss, the statistics beside that pattern term.
     pub fn selection_scores(&self, image: &[[f32; 3]], scratch: &mut Scratch) -> SelectionScores {
         let statistics = self.statistics(&Moments::of(image, &self.weight));
+        let contrast = self.contrast_value(image);
         let finite = |x: f32| if x.is_finite() { x } else { f32::INFINITY };
         if self.weights.features > 0.0 && !self.features.is_empty() {
             let pattern = finite(
                 self.features.loss_any_orientation(image, &self.target_features, scratch).unwrap_or(f32::INFINITY),
             );
-            SelectionScores { pattern, whole: finite(self.combine(statistics, pattern).total) }
+            SelectionScores { pattern, whole: finite(self.combine(statistics, pattern, contrast).total) }
         } else {
-            SelectionScores { pattern: finite(statistics), whole: finite(self.combine(statistics, 0.0).total) }
+            SelectionScores {
+                pattern: finite(statistics),
+                whole: finite(self.combine(statistics, 0.0, contrast).total),
+            }
         }
     }
 
@@ -138,13 +180,18 @@ impl PartLoss {
         } else {
             0.0
         };
+        let contrast = if self.weights.contrast > 0.0 {
+            self.contrast.value_and_grad(image, self.weights.contrast, &mut ContrastScratch::default(), grad)
+        } else {
+            0.0
+        };
         let m = Moments::of(image, &self.weight);
         let statistics = self.statistics(&m);
         let ws = self.weights.statistics;
         for c in 0..3 {
             let d_mean = ws * sign(m.mean[c] - self.target.mean[c]) / self.total_weight;
             let d_std = if m.std[c] > 1e-6 {
-                ws * sign(m.std[c] - self.target.std[c]) / (self.total_weight * m.std[c])
+                ws * self.std_error_sign(c, m.std[c]) / (self.total_weight * m.std[c])
             } else {
                 0.0
             };
@@ -154,18 +201,40 @@ impl PartLoss {
                 }
             }
         }
-        self.combine(statistics, features)
+        self.combine(statistics, features, contrast)
     }
 
     fn statistics(&self, m: &Moments) -> f32 {
-        (0..3).map(|c| (m.mean[c] - self.target.mean[c]).abs() + (m.std[c] - self.target.std[c]).abs()).sum()
+        (0..3).map(|c| (m.mean[c] - self.target.mean[c]).abs() + self.std_error(c, m.std[c])).sum()
     }
 
-    fn combine(&self, statistics: f32, features: f32) -> LossValue {
+    /// Distance of a candidate's standard deviation from the dead zone of channel `c`.
+    fn std_error(&self, c: usize, std: f32) -> f32 {
+        if std > self.target.std[c] {
+            std - self.target.std[c]
+        } else {
+            (self.target_std_floor[c] - std).max(0.0)
+        }
+    }
+
+    fn std_error_sign(&self, c: usize, std: f32) -> f32 {
+        if std > self.target.std[c] {
+            1.0
+        } else if std < self.target_std_floor[c] {
+            -1.0
+        } else {
+            0.0
+        }
+    }
+
+    fn combine(&self, statistics: f32, features: f32, contrast: f32) -> LossValue {
         LossValue {
-            total: self.weights.statistics * statistics + self.weights.features * features,
+            total: self.weights.statistics * statistics
+                + self.weights.features * features
+                + self.weights.contrast * contrast,
             statistics,
             features,
+            contrast,
         }
     }
 }

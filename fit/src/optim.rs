@@ -5,7 +5,6 @@
 //! onto the variables' ranges; discrete parameters are not variables (they are searched).
 
 use psc_compiler::{GraphInfo, ParamKind};
-use psc_render::brdf::MIN_ROUGHNESS;
 
 use crate::layer::{Gradient, MaterialState};
 use crate::uvmap::LOG_SCALE_RANGE;
@@ -26,6 +25,16 @@ impl Free {
 
 /// Albedo scales are kept within 2^±6.
 const LOG2_SCALE_RANGE: f32 = 6.0;
+
+/// The part-wide roughness the fit may choose. The renderer takes any roughness (and `psc
+/// render --set` can give one), but the layer integrates the specular lobe against a light grid
+/// of 11°-by-22° bins at the bins' centres (`shading.rs`), so it cannot see the highlights of a
+/// lobe narrower than a bin: below about 0.4 (GGX α = 0.16, a lobe some 0.3 rad wide) it
+/// predicts glossy reflections the path tracer does not render where they are, and misses the
+/// ones it does. Left free, the fit went there on parts that are not glossy (dev_2's plaster
+/// wall at 0.24 against the truth's 0.76: a mirror-like sheen over the whole relit view; four
+/// of the five fitted roughnesses below 0.4 on dev_1 and dev_2 were below truths of 0.38–0.84).
+pub const FIT_ROUGHNESS_RANGE: (f32, f32) = (0.4, 1.0);
 
 /// The mapping between a [`MaterialState`] and the optimiser's flat vector.
 #[derive(Clone, Debug)]
@@ -88,7 +97,7 @@ impl Packing {
             for c in 0..3 {
                 s.albedo_scale[c] = z[i + c].clamp(-LOG2_SCALE_RANGE, LOG2_SCALE_RANGE).exp2();
             }
-            s.roughness = z[i + 3].clamp(MIN_ROUGHNESS, 1.0);
+            s.roughness = z[i + 3].clamp(FIT_ROUGHNESS_RANGE.0, FIT_ROUGHNESS_RANGE.1);
         }
         s
     }
@@ -107,7 +116,7 @@ impl Packing {
             for c in 0..3 {
                 z[i + c] = z[i + c].clamp(-LOG2_SCALE_RANGE, LOG2_SCALE_RANGE);
             }
-            z[i + 3] = z[i + 3].clamp(MIN_ROUGHNESS, 1.0);
+            z[i + 3] = z[i + 3].clamp(FIT_ROUGHNESS_RANGE.0, FIT_ROUGHNESS_RANGE.1);
         }
     }
 

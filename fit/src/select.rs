@@ -32,7 +32,8 @@
 //! | whole loss | contest of its top three | 2 of 6 | — |
 //! | pattern | its winner | 5 of 6 | dev_1 0.50 (measured a stop earlier) |
 //! | pattern | contest of its top three | 5 of 6 | 0.33 / 0.59 / 0.59 / 0.47 |
-//! | **both** | **contest: pattern's top three + whole loss's winner** | **5 of 6** | **0.32 / 0.61 / 0.46 / 0.47** |
+//! | both | contest: pattern's top three + whole loss's winner | 5 of 6 | 0.32 / 0.61 / 0.46 / 0.47 |
+//! | **both** | **the same, the loss with its contrast term and noise model** | **5 of 6** | **0.21 / 0.38 / 0.38 / 0.31** |
 //!
 //! The pattern vote alone chose graphs whose contrast the fit could not bring down to the
 //! photo's (dev_1's walls a knit, its floor a textured plastic); the contest replaces them (an

@@ -11,7 +11,8 @@
 //!   magnitudes √(dx² + dy²): Rec. 709 luma of the sRGB values, smoothed by a Gaussian of
 //!   σ = [`CONTRAST_SIGMA`] px (truncated at 2σ), forward differences, at the pixels of the part
 //!   eroded by the filter's radius whose right and lower neighbours are in it too (so only the
-//!   part's own pixels enter). The smoothing is there because at the pixel scale the gradients of
+//!   part's own pixels enter): `crate::contrast::gradient_magnitudes`, the statistic the fit's
+//!   contrast loss matches, so the two cannot drift apart. The smoothing is there because at the pixel scale the gradients of
 //!   a 64-spp render are mostly Monte Carlo noise: unsmoothed, the true materials score no better
 //!   than a constant colour (measured on dev_4: oracle / pixel median 0.96–1.17×; smoothed with
 //!   σ = 1: 0.19–0.38× on the true geometry).
@@ -20,19 +21,17 @@
 //! K2 = 0.03, L = 1, per channel over the positions where the window fits inside the image
 //! ("valid"), averaged over positions and channels.
 //!
-//! Sums run in f64 in a fixed order, so the numbers do not depend on the thread count.
+//! Sums run in f64 in a fixed order, so the numbers do not depend on the thread count (the
+//! contrast samples themselves are computed in f32, as the fit computes them).
 
 use std::collections::BTreeMap;
 
 /// Parts with fewer labelled pixels in an image are left out of that image's averages.
 pub const MIN_PART_PIXELS: usize = 200;
 
+pub use crate::contrast::erode;
 /// Gaussian smoothing (px) of the luma before the gradients of the contrast metric.
-pub const CONTRAST_SIGMA: f64 = 1.0;
-const CONTRAST_RADIUS: usize = 2;
-
-/// Rec. 709 luma weights (applied to the sRGB-encoded values).
-const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
+pub use crate::contrast::SIGMA as CONTRAST_SIGMA;
 
 /// The metrics of one part in one image.
 #[derive(Clone, Debug, PartialEq)]
@@ -126,71 +125,10 @@ pub fn colour_w1(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
         / 3.0
 }
 
-fn luma(p: [f32; 3]) -> f64 {
-    LUMA[0] * p[0] as f64 + LUMA[1] * p[1] as f64 + LUMA[2] * p[2] as f64
-}
-
-/// Gradient magnitudes √(dx² + dy²) (forward differences) of a scalar image at every pixel of
-/// `mask` whose right and lower neighbours are in `mask` too, in raster order.
-pub fn gradient_magnitudes(plane: &[f64], width: usize, height: usize, mask: &[bool]) -> Vec<f32> {
-    let mut out = Vec::new();
-    for y in 0..height.saturating_sub(1) {
-        for x in 0..width.saturating_sub(1) {
-            let i = y * width + x;
-            if mask[i] && mask[i + 1] && mask[i + width] {
-                let dx = plane[i + 1] - plane[i];
-                let dy = plane[i + width] - plane[i];
-                out.push((dx * dx + dy * dy).sqrt() as f32);
-            }
-        }
-    }
-    out
-}
-
-/// `mask` eroded by a (2r+1)² square: a pixel stays if its whole window is inside the image and
-/// the mask.
-pub fn erode(mask: &[bool], width: usize, height: usize, r: usize) -> Vec<bool> {
-    let mut out = vec![false; mask.len()];
-    for y in r..height.saturating_sub(r) {
-        for x in r..width.saturating_sub(r) {
-            out[y * width + x] = (y - r..=y + r).all(|yy| (x - r..=x + r).all(|xx| mask[yy * width + xx]));
-        }
-    }
-    out
-}
-
-/// Separable Gaussian smoothing (σ = [`CONTRAST_SIGMA`], radius [`CONTRAST_RADIUS`], weights
-/// normalised), borders clamped. Only values whose window lies inside the image are used by the
-/// contrast metric (the mask is eroded by the radius).
-fn smooth(plane: &[f64], width: usize, height: usize) -> Vec<f64> {
-    let r = CONTRAST_RADIUS as isize;
-    let g: Vec<f64> = (-r..=r).map(|d| (-((d * d) as f64) / (2.0 * CONTRAST_SIGMA * CONTRAST_SIGMA)).exp()).collect();
-    let sum: f64 = g.iter().sum();
-    let g: Vec<f64> = g.iter().map(|v| v / sum).collect();
-    let at = |v: isize, n: usize| v.clamp(0, n as isize - 1) as usize;
-    let mut rows = vec![0.0; plane.len()];
-    for y in 0..height {
-        for x in 0..width {
-            rows[y * width + x] =
-                (-r..=r).map(|d| g[(d + r) as usize] * plane[y * width + at(x as isize + d, width)]).sum();
-        }
-    }
-    let mut out = vec![0.0; plane.len()];
-    for y in 0..height {
-        for x in 0..width {
-            out[y * width + x] =
-                (-r..=r).map(|d| g[(d + r) as usize] * rows[at(y as isize + d, height) * width + x]).sum();
-        }
-    }
-    out
-}
-
 /// The samples of the contrast metric: gradient magnitudes of the smoothed luma inside the
 /// eroded part (see the module doc).
 pub fn contrast_samples(img: &[[f32; 3]], width: usize, height: usize, mask: &[bool]) -> Vec<f32> {
-    let plane: Vec<f64> = img.iter().map(|p| luma(*p)).collect();
-    let inner = erode(mask, width, height, CONTRAST_RADIUS);
-    gradient_magnitudes(&smooth(&plane, width, height), width, height, &inner)
+    crate::contrast::gradient_magnitudes(img, width, height, mask)
 }
 
 /// The metrics of every part of `names` with at least [`MIN_PART_PIXELS`] pixels in `labels`
