@@ -69,6 +69,7 @@ fn view(rng: &mut SplitMix64) -> PartView {
         target: vec![[0.5; 3]; w * h],
         target_linear: vec![[0.2; 3]; w * h],
         exposure: [1.0; 3],
+        noise: [0.0; 4],
     }
 }
 

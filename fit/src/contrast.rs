@@ -21,8 +21,8 @@
 //! A photo's gradients include its pixel noise; a rendered candidate has none, and matched
 //! against the photo it would grow a texture to stand in for the noise (a plain painted crate
 //! fitted with wood grain). So the candidate is measured as the camera would record it: a fixed
-//! pseudo-random Gaussian field with the photo's estimated noise (Immerkær's estimator on the
-//! crop's luma, as the feature loss does) is added to its luma before smoothing. The field is a
+//! pseudo-random Gaussian field with the photo's noise (estimated over the whole photo, see
+//! `features::estimate_photo_noise_sigma`) is added to its luma before smoothing. The field is a
 //! function of the pixel index only, so the loss is deterministic and its gradient exact.
 //!
 //! # Measured
@@ -44,8 +44,6 @@
 //! from a quartz to a cut pile whose start the contrast term now prefers. The weight (3, see
 //! `loss.rs`) was set by the argument there, not tuned.
 
-use crate::features::estimate_noise_sigma;
-
 /// Rec. 709 luma weights on sRGB values.
 const LUMA: [f32; 3] = [0.2126, 0.7152, 0.0722];
 /// Gaussian smoothing before the differences, in pixels, and its truncation radius.
@@ -66,7 +64,6 @@ pub struct ContrastLoss {
     target: Vec<f32>,
     /// Per crop pixel, the noise added to a candidate's luma.
     noise: Vec<f32>,
-    noise_sigma: f32,
 }
 
 /// Working buffers of one evaluation (one per thread).
@@ -81,8 +78,9 @@ pub struct ContrastScratch {
 }
 
 impl ContrastLoss {
-    /// `weight`: per crop pixel, > 0 where the pixel belongs to the part; `target`: the photo.
-    pub fn new(width: usize, height: usize, weight: &[f32], target: &[[f32; 3]]) -> ContrastLoss {
+    /// `weight`: per crop pixel, > 0 where the pixel belongs to the part; `target`: the photo;
+    /// `noise_sigma`: the photo's luma noise at the crop's resolution.
+    pub fn new(width: usize, height: usize, weight: &[f32], target: &[[f32; 3]], noise_sigma: f32) -> ContrastLoss {
         let n = width * height;
         assert_eq!(weight.len(), n, "contrast loss: one weight per crop pixel");
         assert_eq!(target.len(), n, "contrast loss: one photo value per crop pixel");
@@ -93,9 +91,8 @@ impl ContrastLoss {
             samples.clear();
         }
         let luma: Vec<f32> = target.iter().map(|p| luma_of(*p)).collect();
-        let noise_sigma = if samples.is_empty() { 0.0 } else { estimate_noise_sigma(&luma, weight, width, height) };
         let noise = (0..n).map(|i| noise_sigma * standard_normal(i as u64)).collect();
-        let mut loss = ContrastLoss { width, height, kernel, samples, target: Vec::new(), noise, noise_sigma };
+        let mut loss = ContrastLoss { width, height, kernel, samples, target: Vec::new(), noise };
         let mut scratch = ContrastScratch::default();
         loss.magnitudes(&luma, &mut scratch);
         let mut t = scratch.magnitude.clone();
@@ -107,11 +104,6 @@ impl ContrastLoss {
     /// False when the part is too thin or small for the distribution to be measured.
     pub fn is_active(&self) -> bool {
         !self.samples.is_empty()
-    }
-
-    /// The estimated noise (sRGB luma units) added to candidates.
-    pub fn noise_sigma(&self) -> f32 {
-        self.noise_sigma
     }
 
     /// The loss of a candidate crop (sRGB values).
@@ -340,7 +332,7 @@ mod tests {
         let (w, h) = (24, 20);
         let weight = disc_weight(w, h);
         let target = textured(w, h, 0.1, 7.0);
-        let loss = ContrastLoss::new(w, h, &weight, &target);
+        let loss = ContrastLoss::new(w, h, &weight, &target, 0.0);
         assert!(loss.is_active());
         let candidate = textured(w, h, 0.05, 5.0);
         let mut scratch = ContrastScratch::default();
@@ -373,7 +365,7 @@ mod tests {
         let (w, h) = (40, 32);
         let weight = disc_weight(w, h);
         let photo = textured(w, h, 0.1, 8.0);
-        let loss = ContrastLoss::new(w, h, &weight, &photo);
+        let loss = ContrastLoss::new(w, h, &weight, &photo, 0.0);
         let mut scratch = ContrastScratch::default();
         let same = loss.value(&photo, &mut scratch);
         // The photo's own pattern, shifted: same distribution of magnitudes.
@@ -405,11 +397,10 @@ mod tests {
                 [0.5 + z, 0.5 + z, 0.5 + z]
             })
             .collect();
-        let loss = ContrastLoss::new(w, h, &weight, &photo);
-        assert!((loss.noise_sigma() - sigma).abs() < 0.3 * sigma, "estimated noise {}", loss.noise_sigma());
+        let loss = ContrastLoss::new(w, h, &weight, &photo, sigma);
         let flat = vec![[0.5f32; 3]; w * h];
         let mut scratch = ContrastScratch::default();
-        let with_texture = textured(w, h, 0.02, 3.0);
+        let with_texture = textured(w, h, 0.02, 6.0);
         assert!(loss.value(&flat, &mut scratch) < loss.value(&with_texture, &mut scratch));
     }
 }

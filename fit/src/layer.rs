@@ -71,6 +71,9 @@ pub struct PartView {
     /// The view's RGB exposure: the factor per channel between a linear render and the photo
     /// (the light solve's, 1 before it).
     pub exposure: [f32; 3],
+    /// The target's pixel noise at the crop's resolution: standard deviations of r, g, b and
+    /// luma (sRGB). Zeros: a noise-free target.
+    pub noise: [f32; 4],
 }
 
 /// How densely the layer samples a pixel's footprint.

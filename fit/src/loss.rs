@@ -5,14 +5,14 @@
 //! The photo's pixel noise adds to its standard deviation, and a rendered candidate has none:
 //! matching the two would ask a plain part for a texture as strong as the noise. So the
 //! standard-deviation term has a dead zone, as the feature loss's bands do: a candidate whose
-//! deviation lies between √(σ_photo² − σ_noise²) and σ_photo (per channel, the noise estimated
-//! on the crop) is not penalised.
+//! deviation lies between √(σ_photo² − σ_noise²) and σ_photo (per channel, the photo's noise
+//! as [`PartView::noise`] gives it) is not penalised.
 
 use serde::Serialize;
 
 use crate::contrast::{ContrastLoss, ContrastScratch};
 use crate::error::FitError;
-use crate::features::{estimate_noise_sigma, Descriptor, FeatureConfig, FeatureLoss, Region, Scratch};
+use crate::features::{Descriptor, FeatureConfig, FeatureLoss, Region, Scratch};
 use crate::layer::PartView;
 
 /// Weights of the loss terms.
@@ -30,6 +30,12 @@ impl Default for LossWeights {
         LossWeights { statistics: 1.0, features: 1.0, contrast: CONTRAST_WEIGHT }
     }
 }
+
+/// The dead zone's lower edge takes the noise estimate 10% larger: where a plain part's
+/// deviation is mostly noise, √(σ_photo² − σ_noise²) is steep in the estimate (5% low leaves a
+/// floor of 0.3 σ_photo, which asks for texture again), and the estimate, the lower quartile
+/// of the photo's blocks, reads a few per cent low on pure noise.
+const NOISE_MARGIN: f32 = 1.1;
 
 /// The contrast term's weight: its value is a mean gradient-magnitude difference of the luma,
 /// one channel where the statistics term sums three, so it weighs as much as they do.
@@ -106,11 +112,10 @@ impl PartLoss {
         let target_features = features.describe(&view.target, scratch).map_err(feature_error)?;
         let target = Moments::of(&view.target, &view.weight);
         let target_std_floor = std::array::from_fn(|c| {
-            let plane: Vec<f32> = view.target.iter().map(|p| p[c]).collect();
-            let noise = estimate_noise_sigma(&plane, &view.weight, view.width, view.height);
+            let noise = NOISE_MARGIN * view.noise[c];
             (target.std[c].powi(2) - noise * noise).max(0.0).sqrt()
         });
-        let contrast = ContrastLoss::new(view.width, view.height, &view.pattern_weight, &view.target);
+        let contrast = ContrastLoss::new(view.width, view.height, &view.pattern_weight, &view.target, view.noise[3]);
         Ok(PartLoss {
             weights,
             total_weight: view.total_weight().max(1e-6),

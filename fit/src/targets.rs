@@ -113,6 +113,8 @@ pub fn part_view(
         target,
         target_linear,
         exposure,
+        // A fit pixel averages factor² photo pixels: independent noise shrinks by the factor.
+        noise: obs.photo.noise.map(|s| s / factor as f32),
     })
 }
 

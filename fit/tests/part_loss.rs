@@ -5,16 +5,16 @@ mod flat_view;
 
 use flat_view::flat_view;
 use psc_base::SplitMix64;
-use psc_fit::features::{FeatureConfig, Scratch};
+use psc_fit::features::{estimate_photo_noise_sigma, FeatureConfig, Scratch};
 use psc_fit::loss::{LossWeights, PartLoss};
 
 const SIZE: usize = 48;
 
 /// A grey photo with Gaussian pixel noise of `sigma` (the same on the three channels, as a path
 /// tracer's noise mostly is).
-fn noisy_grey(sigma: f32, seed: u64) -> Vec<[f32; 3]> {
+fn noisy_grey(size: usize, sigma: f32, seed: u64) -> Vec<[f32; 3]> {
     let mut rng = SplitMix64::new(seed);
-    (0..SIZE * SIZE)
+    (0..size * size)
         .map(|_| {
             let (u1, u2) = (rng.next_f64().max(1e-12), rng.next_f64());
             let z = ((-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()) as f32;
@@ -25,10 +25,10 @@ fn noisy_grey(sigma: f32, seed: u64) -> Vec<[f32; 3]> {
 }
 
 /// A smooth texture: a sum of two oblique waves of amplitude `amplitude`.
-fn waves(amplitude: f32, period: f32) -> Vec<[f32; 3]> {
-    (0..SIZE * SIZE)
+fn waves(size: usize, amplitude: f32, period: f32) -> Vec<[f32; 3]> {
+    (0..size * size)
         .map(|i| {
-            let (x, y) = ((i % SIZE) as f32, (i / SIZE) as f32);
+            let (x, y) = ((i % size) as f32, (i / size) as f32);
             let t = std::f32::consts::TAU / period;
             let v =
                 0.45 + amplitude * ((t * (x + 0.4 * y)).sin() + (t * (0.7 * x - y)).cos()) / std::f32::consts::SQRT_2;
@@ -40,10 +40,10 @@ fn waves(amplitude: f32, period: f32) -> Vec<[f32; 3]> {
 #[test]
 fn the_gradient_of_the_whole_loss_matches_central_differences() {
     let mut view = flat_view(SIZE, 0.02);
-    view.target = waves(0.06, 9.0);
+    view.target = waves(SIZE, 0.06, 9.0);
     let mut scratch = Scratch::default();
     let loss = PartLoss::new(&view, LossWeights::default(), &FeatureConfig::default(), &mut scratch).unwrap();
-    let candidate = waves(0.03, 6.0);
+    let candidate = waves(SIZE, 0.03, 6.0);
     let mut grad = Vec::new();
     let value = loss.value_and_grad(&candidate, &mut scratch, &mut grad);
     assert!(value.contrast > 0.0 && value.features > 0.0 && value.statistics > 0.0, "{value:?}");
@@ -71,12 +71,21 @@ fn pixel_noise_in_a_plain_photo_is_not_fitted_as_texture() {
     // The photo is a flat grey with noise; a candidate with a texture as strong as the noise
     // matches its standard deviation and its gradient magnitudes, if the noise is ignored.
     let sigma = 0.02;
-    let mut view = flat_view(SIZE, 0.02);
-    view.target = noisy_grey(sigma, 3);
+    // Large enough for sixteen blocks of the photo-wide noise estimate.
+    let size = 128;
+    let mut view = flat_view(size, 0.01);
+    view.target = noisy_grey(size, sigma, 3);
+    // The photo's noise, estimated as the fit estimates it (over the whole photo, here the crop).
+    let luma = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+    view.noise = std::array::from_fn(|c| {
+        let plane: Vec<f32> = view.target.iter().map(|p| if c < 3 { p[c] } else { luma(p) }).collect();
+        estimate_photo_noise_sigma(&plane, &view.weight, size, size)
+    });
+    assert!((view.noise[0] - sigma).abs() < 0.2 * sigma, "estimated noise {:?}", view.noise);
     let mut scratch = Scratch::default();
     let loss = PartLoss::new(&view, LossWeights::default(), &FeatureConfig::default(), &mut scratch).unwrap();
-    let flat = waves(0.0, 9.0);
-    let textured = waves(sigma, 4.0);
+    let flat = waves(size, 0.0, 9.0);
+    let textured = waves(size, sigma, 4.0);
     let (lf, lt) = (loss.value(&flat, &mut scratch), loss.value(&textured, &mut scratch));
     // Without a noise model the flat candidate's statistics would be the photo's deviations.
     let without_noise_model: f32 = loss.target_moments().std.iter().sum();
