@@ -182,14 +182,11 @@ impl fmt::Display for FeatureError {
 
 impl std::error::Error for FeatureError {}
 
-/// The pixel-noise standard deviation of a whole photo's plane: Immerkær's estimate (median
-/// absolute response of his mask) in each 32×32 block whose 3×3 windows have a positive weight,
-/// and the lower quartile of the blocks' estimates. Noise is a property of the photo, and
-/// textures raise the estimate of the blocks they cover (on dev_1's gravel wall a part-wide
-/// estimate read 0.032 where the noise is about 0.013); the quieter blocks of a room (plain
-/// walls, ceilings) read the noise alone. 0 when no block has enough pixels.
-pub fn estimate_photo_noise_sigma(plane: &[f32], weight: &[f32], width: usize, height: usize) -> f32 {
-    noise::estimate_sigma_by_blocks(plane, weight, width, height)
+/// Immerkær's estimate of the pixel-noise standard deviation of a plane (median absolute
+/// response of his mask) over the pixels whose whole 3×3 window has a positive weight; 0 when
+/// there are none. On a crop it also counts the part's finest texture as noise.
+pub fn estimate_noise_sigma(plane: &[f32], weight: &[f32], width: usize, height: usize) -> f32 {
+    noise::estimate_sigma(plane, weight, width, height, &mut Vec::new())
 }
 
 /// Which entries a descriptor has; two descriptors compare only with equal layouts.

@@ -31,12 +31,6 @@ impl Default for LossWeights {
     }
 }
 
-/// The dead zone's lower edge takes the noise estimate 10% larger: where a plain part's
-/// deviation is mostly noise, √(σ_photo² − σ_noise²) is steep in the estimate (5% low leaves a
-/// floor of 0.3 σ_photo, which asks for texture again), and the estimate, the lower quartile
-/// of the photo's blocks, reads a few per cent low on pure noise.
-const NOISE_MARGIN: f32 = 1.1;
-
 /// The contrast term's weight: its value is a mean gradient-magnitude difference of the luma,
 /// one channel where the statistics term sums three, so it weighs as much as they do.
 const CONTRAST_WEIGHT: f32 = 3.0;
@@ -111,10 +105,7 @@ impl PartLoss {
         let features = FeatureLoss::new(config, &region).map_err(feature_error)?;
         let target_features = features.describe(&view.target, scratch).map_err(feature_error)?;
         let target = Moments::of(&view.target, &view.weight);
-        let target_std_floor = std::array::from_fn(|c| {
-            let noise = NOISE_MARGIN * view.noise[c];
-            (target.std[c].powi(2) - noise * noise).max(0.0).sqrt()
-        });
+        let target_std_floor = std::array::from_fn(|c| (target.std[c].powi(2) - view.noise[c].powi(2)).max(0.0).sqrt());
         let contrast = ContrastLoss::new(view.width, view.height, &view.pattern_weight, &view.target, view.noise[3]);
         Ok(PartLoss {
             weights,

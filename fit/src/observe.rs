@@ -24,9 +24,6 @@ pub struct Photo {
     pub height: usize,
     pub encoded: Vec<[f32; 3]>,
     pub linear: Vec<[f32; 3]>,
-    /// The photo's pixel noise, standard deviations of its encoded r, g, b and Rec. 709 luma
-    /// (`features::estimate_photo_noise_sigma`, unclipped pixels).
-    pub noise: [f32; 4],
 }
 
 impl Photo {
@@ -50,22 +47,11 @@ impl Photo {
                 bad / img.width
             )));
         }
-        let mut photo = Photo { width: img.width, height: img.height, encoded, linear, noise: [0.0; 4] };
-        photo.noise = photo.estimate_noise();
-        Ok(photo)
+        Ok(Photo { width: img.width, height: img.height, encoded, linear })
     }
 
     /// Whether any channel of pixel `i` is at or above 0.99 of full scale (clipped: its true
     /// value is unknown).
-    fn estimate_noise(&self) -> [f32; 4] {
-        let weight: Vec<f32> = (0..self.encoded.len()).map(|i| if self.clipped(i) { 0.0 } else { 1.0 }).collect();
-        let luma = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-        std::array::from_fn(|c| {
-            let plane: Vec<f32> = self.encoded.iter().map(|p| if c < 3 { p[c] } else { luma(p) }).collect();
-            crate::features::estimate_photo_noise_sigma(&plane, &weight, self.width, self.height)
-        })
-    }
-
     pub fn clipped(&self, i: usize) -> bool {
         self.encoded[i].iter().any(|&c| c >= 0.99)
     }

@@ -5,7 +5,7 @@ mod flat_view;
 
 use flat_view::flat_view;
 use psc_base::SplitMix64;
-use psc_fit::features::{estimate_photo_noise_sigma, FeatureConfig, Scratch};
+use psc_fit::features::{estimate_noise_sigma, FeatureConfig, Scratch};
 use psc_fit::loss::{LossWeights, PartLoss};
 
 const SIZE: usize = 48;
@@ -71,15 +71,14 @@ fn pixel_noise_in_a_plain_photo_is_not_fitted_as_texture() {
     // The photo is a flat grey with noise; a candidate with a texture as strong as the noise
     // matches its standard deviation and its gradient magnitudes, if the noise is ignored.
     let sigma = 0.02;
-    // Large enough for sixteen blocks of the photo-wide noise estimate.
     let size = 128;
     let mut view = flat_view(size, 0.01);
     view.target = noisy_grey(size, sigma, 3);
-    // The photo's noise, estimated as the fit estimates it (over the whole photo, here the crop).
+    // The photo's noise, estimated as the fit estimates it (on the crop).
     let luma = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
     view.noise = std::array::from_fn(|c| {
         let plane: Vec<f32> = view.target.iter().map(|p| if c < 3 { p[c] } else { luma(p) }).collect();
-        estimate_photo_noise_sigma(&plane, &view.weight, size, size)
+        estimate_noise_sigma(&plane, &view.weight, size, size)
     });
     assert!((view.noise[0] - sigma).abs() < 0.2 * sigma, "estimated noise {:?}", view.noise);
     let mut scratch = Scratch::default();

@@ -51,41 +51,6 @@ pub(super) fn estimate_sigma(plane: &[f32], weight: &[f32], w: usize, h: usize, 
     *median / (0.6745 * 6.0)
 }
 
-/// Side of the blocks of [`estimate_sigma_by_blocks`], and the valid windows a block needs.
-const BLOCK: usize = 32;
-const BLOCK_MIN_WINDOWS: usize = 256;
-
-/// The lower quartile over 32×32 blocks of [`estimate_sigma`] (see
-/// `estimate_photo_noise_sigma`).
-pub(super) fn estimate_sigma_by_blocks(plane: &[f32], weight: &[f32], w: usize, h: usize) -> f32 {
-    let mut block = Vec::new();
-    let mut responses = Vec::new();
-    let mut sigmas = Vec::new();
-    for by in (0..h).step_by(BLOCK) {
-        for bx in (0..w).step_by(BLOCK) {
-            // The block with a one-pixel apron, so that its windows are whole.
-            let (x0, y0) = (bx.saturating_sub(1), by.saturating_sub(1));
-            let (x1, y1) = ((bx + BLOCK + 1).min(w), (by + BLOCK + 1).min(h));
-            let (bw, bh) = (x1 - x0, y1 - y0);
-            let mut bweight = Vec::with_capacity(bw * bh);
-            block.clear();
-            for y in y0..y1 {
-                block.extend_from_slice(&plane[y * w + x0..y * w + x1]);
-                bweight.extend_from_slice(&weight[y * w + x0..y * w + x1]);
-            }
-            let sigma = estimate_sigma(&block, &bweight, bw, bh, &mut responses);
-            if responses.len() >= BLOCK_MIN_WINDOWS {
-                sigmas.push(sigma);
-            }
-        }
-    }
-    if sigmas.is_empty() {
-        return 0.0;
-    }
-    sigmas.sort_by(f32::total_cmp);
-    sigmas[sigmas.len() / 4]
-}
-
 /// Per level and orientation: the energy a unit-variance white noise at the working resolution
 /// gives on average, ‖G2(θ)‖² + ‖H2(θ)‖² of the filters referred back to level 0. They depend
 /// only on the orientation count and the level, so they are computed once per process.
@@ -165,35 +130,6 @@ mod tests {
             assert!(border.map(f32::abs).fold(0.0, f32::max) == 0.0, "level {l}: kernel reaches the border");
             assert!(small > 0.0);
         }
-    }
-
-    /// A photo whose left half is a fine, strong texture: the whole-image estimate reads the
-    /// noise, where the plain Immerkær estimate over the same pixels reads the texture too.
-    #[test]
-    fn the_block_estimate_reads_the_noise_beside_a_fine_texture() {
-        let (w, h) = (256, 128);
-        let sigma = 0.01f32;
-        let mut state = 5u64;
-        let mut normal = || {
-            let mut u = || {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-            };
-            let (a, b) = (u(), u());
-            ((-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()) as f32
-        };
-        let plane: Vec<f32> = (0..w * h)
-            .map(|i| {
-                let (x, y) = (i % w, i / w);
-                let texture = if x < w / 2 { 0.08 * (((x * 7 + y * 13) % 5) as f32 / 4.0 - 0.5) } else { 0.0 };
-                0.5 + texture + sigma * normal()
-            })
-            .collect();
-        let weight = vec![1.0; w * h];
-        let blocks = estimate_sigma_by_blocks(&plane, &weight, w, h);
-        let whole = estimate_sigma(&plane, &weight, w, h, &mut Vec::new());
-        assert!((blocks - sigma).abs() < 0.15 * sigma, "block estimate {blocks} for noise {sigma}");
-        assert!(whole > 1.5 * sigma, "the plain estimate {whole} was expected to count the texture");
     }
 
     /// White noise of known σ through the real pipeline gives σ² · gain per band, on average.
