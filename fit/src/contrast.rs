@@ -21,8 +21,8 @@
 //! A photo's gradients include its pixel noise; a rendered candidate has none, and matched
 //! against the photo it would grow a texture to stand in for the noise (a plain painted crate
 //! fitted with wood grain). So the candidate is measured as the camera would record it: a fixed
-//! pseudo-random Gaussian field with the photo's noise (estimated over the whole photo, see
-//! `features::estimate_photo_noise_sigma`) is added to its luma before smoothing. The field is a
+//! pseudo-random Gaussian field with the photo's noise (`PartView::noise`, estimated on the
+//! crop by `targets`) is added to its luma before smoothing. The field is a
 //! function of the pixel index only, so the loss is deterministic and its gradient exact.
 //!
 //! # Measured
