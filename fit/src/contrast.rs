@@ -12,8 +12,8 @@
 //! On the crop (sRGB values, fit pixels): the Rec. 709 luma, smoothed by a normalised Gaussian
 //! (σ = 1 pixel, radius 2, zero padding), forward differences, magnitudes √(dx² + dy²) at every
 //! pixel whose smoothing window and right and lower neighbours lie in the mask
-//! ([`gradient_magnitudes`]: the one definition, which `psc eval`'s contrast metric uses too). The loss is the
-//! 1-Wasserstein distance between the candidate's and the photo's magnitudes (same pixels, so
+//! ([`gradient_magnitudes`]: the one definition, which `psc eval`'s contrast metric uses too).
+//! The loss is the 1-Wasserstein distance between the candidate's and the photo's magnitudes (same pixels, so
 //! same count: the mean absolute difference of the sorted values). Its gradient pairs each
 //! candidate sample with the photo sample of the same rank.
 //!
@@ -22,8 +22,8 @@
 //! against the photo it would grow a texture to stand in for the noise (a plain painted crate
 //! fitted with wood grain). So the candidate is measured as the camera would record it: a fixed
 //! pseudo-random Gaussian field with the photo's noise (`PartView::noise`, estimated on the
-//! crop by `targets`) is added to its luma before smoothing. The field is a
-//! function of the pixel index only, so the loss is deterministic and its gradient exact.
+//! crop by `targets`) is added to its luma before smoothing. The field is a function of the
+//! pixel index only, so the loss is deterministic and its gradient exact.
 //!
 //! # Measured
 //! `psc eval --spp 128`, texture-contrast W1 of the fit over the pixel median's on the true
@@ -90,14 +90,14 @@ impl ContrastLoss {
         if samples.len() < MIN_SAMPLES {
             samples.clear();
         }
-        let luma: Vec<f32> = target.iter().map(|p| luma_of(*p)).collect();
+        let luma: Vec<f32> = target.iter().map(|p| luma(*p)).collect();
         let noise = (0..n).map(|i| noise_sigma * standard_normal(i as u64)).collect();
         let mut loss = ContrastLoss { width, height, kernel, samples, target: Vec::new(), noise };
         let mut scratch = ContrastScratch::default();
         loss.magnitudes(&luma, &mut scratch);
-        let mut t = scratch.magnitude.clone();
-        t.sort_by(f32::total_cmp);
-        loss.target = t;
+        let mut target = scratch.magnitude;
+        target.sort_by(f32::total_cmp);
+        loss.target = target;
         loss
     }
 
@@ -112,7 +112,7 @@ impl ContrastLoss {
             return 0.0;
         }
         self.candidate_magnitudes(image, scratch);
-        let mut m = scratch.magnitude.clone();
+        let m = &mut scratch.magnitude;
         m.sort_by(f32::total_cmp);
         let sum: f64 = m.iter().zip(&self.target).map(|(a, b)| f64::from((a - b).abs())).sum();
         (sum / m.len() as f64) as f32
@@ -173,7 +173,7 @@ impl ContrastLoss {
 
     fn candidate_magnitudes(&self, image: &[[f32; 3]], scratch: &mut ContrastScratch) {
         assert_eq!(image.len(), self.width * self.height, "contrast loss: a candidate of another crop");
-        let luma: Vec<f32> = image.iter().zip(&self.noise).map(|(p, &z)| luma_of(*p) + z).collect();
+        let luma: Vec<f32> = image.iter().zip(&self.noise).map(|(p, &z)| luma(*p) + z).collect();
         self.magnitudes(&luma, scratch);
     }
 
@@ -193,7 +193,7 @@ impl ContrastLoss {
 /// pixels of `part` ([`sample_pixels`]), in raster order: the texture-contrast statistic.
 pub fn gradient_magnitudes(image: &[[f32; 3]], width: usize, height: usize, part: &[bool]) -> Vec<f32> {
     let samples = sample_pixels(part, width, height);
-    let luma: Vec<f32> = image.iter().map(|p| luma_of(*p)).collect();
+    let luma: Vec<f32> = image.iter().map(|p| luma(*p)).collect();
     let (mut rows, mut smooth) = (Vec::new(), Vec::new());
     convolve(&luma, width, height, &gaussian_kernel(), &mut rows, &mut smooth);
     let (mut d, mut magnitude) = (Vec::new(), Vec::new());
@@ -241,7 +241,8 @@ fn gaussian_kernel() -> [f32; 2 * RADIUS + 1] {
     kernel
 }
 
-fn luma_of(p: [f32; 3]) -> f32 {
+/// The Rec. 709 luma of sRGB values, the scalar the contrast statistic is taken on.
+pub fn luma(p: [f32; 3]) -> f32 {
     LUMA[0] * p[0] + LUMA[1] * p[1] + LUMA[2] * p[2]
 }
 

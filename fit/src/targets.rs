@@ -124,14 +124,12 @@ pub fn part_view(
 /// about 0.013), so the losses forgive a candidate for lacking some of that texture. A
 /// photo-wide estimate (the lower quartile of Immerkær estimates over 32×32 blocks of the
 /// whole photo) was tried: it avoids that confusion but, measured on dev_1, fitted more fine
-/// texture than the photos have: contrast
-/// W1 over the pixel median's 0.28 / 0.63 / 0.30 (input, novel, relit) against 0.21 / 0.42 /
-/// 0.22 with the crop's estimate (path-tracing noise is larger on bright parts than on the
-/// photo's quietest blocks).
+/// texture than the photos have: contrast W1 over the pixel median's 0.28 / 0.63 / 0.30
+/// (input, novel, relit) against 0.21 / 0.42 / 0.22 with the crop's estimate (path-tracing
+/// noise is larger on bright parts than on the photo's quietest blocks).
 fn crop_noise(target: &[[f32; 3]], weight: &[f32], pattern_weight: &[f32], w: usize, h: usize) -> [f32; 4] {
-    let luma = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
     std::array::from_fn(|c| {
-        let plane: Vec<f32> = target.iter().map(|p| if c < 3 { p[c] } else { luma(p) }).collect();
+        let plane: Vec<f32> = target.iter().map(|&p| if c < 3 { p[c] } else { crate::contrast::luma(p) }).collect();
         crate::features::estimate_noise_sigma(&plane, if c < 3 { weight } else { pattern_weight }, w, h)
     })
 }

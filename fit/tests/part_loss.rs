@@ -5,6 +5,7 @@ mod flat_view;
 
 use flat_view::flat_view;
 use psc_base::SplitMix64;
+use psc_fit::contrast::luma;
 use psc_fit::features::{estimate_noise_sigma, FeatureConfig, Scratch};
 use psc_fit::loss::{LossWeights, PartLoss};
 
@@ -75,9 +76,8 @@ fn pixel_noise_in_a_plain_photo_is_not_fitted_as_texture() {
     let mut view = flat_view(size, 0.01);
     view.target = noisy_grey(size, sigma, 3);
     // The photo's noise, estimated as the fit estimates it (on the crop).
-    let luma = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
     view.noise = std::array::from_fn(|c| {
-        let plane: Vec<f32> = view.target.iter().map(|p| if c < 3 { p[c] } else { luma(p) }).collect();
+        let plane: Vec<f32> = view.target.iter().map(|&p| if c < 3 { p[c] } else { luma(p) }).collect();
         estimate_noise_sigma(&plane, &view.weight, size, size)
     });
     assert!((view.noise[0] - sigma).abs() < 0.2 * sigma, "estimated noise {:?}", view.noise);
