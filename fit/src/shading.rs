@@ -48,8 +48,6 @@ struct BinGeometry {
     centre: [Vec3; BINS],
     /// Solid angle.
     omega: [f32; BINS],
-    /// (cos, sin) of each column's central azimuth.
-    azimuth: [[f32; 2]; COLS],
 }
 
 fn bins() -> &'static BinGeometry {
@@ -61,10 +59,6 @@ fn bins() -> &'static BinGeometry {
             moment: [Vec3::ZERO; BINS],
             centre: [Vec3::ZERO; BINS],
             omega: [0.0; BINS],
-            azimuth: std::array::from_fn(|j| {
-                let phi = (j as f32 + 0.5) * dp;
-                [phi.cos(), phi.sin()]
-            }),
         };
         for i in 0..ROWS {
             let (t0, t1) = (i as f64 * dt as f64, (i + 1) as f64 * dt as f64);
@@ -202,15 +196,7 @@ fn for_clipped_bins(n: Vec3, mut f: impl FnMut(usize, f32)) {
         return;
     }
     let g = bins();
-    // The column whose centre azimuth is nearest the direction opposite the normal's tilt.
-    let mut centre = 0;
-    let mut lowest = f32::INFINITY;
-    for (j, a) in g.azimuth.iter().enumerate() {
-        let d = n.x * a[0] + n.y * a[1];
-        if d < lowest {
-            (lowest, centre) = (d, j);
-        }
-    }
+    let centre = opposite_column(n);
     for i in (0..ROWS).rev() {
         let row = i * COLS;
         let c = n.dot(g.moment[row + centre]);
@@ -244,6 +230,27 @@ fn for_clipped_bins(n: Vec3, mut f: impl FnMut(usize, f32)) {
                 walked += 1;
             }
         }
+    }
+}
+
+/// The column whose centre azimuth is nearest the direction opposite the normal's tilt,
+/// `atan2(−n.y, −n.x)`, without the arctangent or a search over the columns: the quadrant from
+/// the signs, the column within it from comparing |y| with |x| tan 22.5°, |x| and |x| tan 67.5°
+/// (the columns' edges). A tie on an edge may pick either neighbour: the arc walk that follows
+/// starts from the neighbour of a column that is not clipped.
+#[inline]
+fn opposite_column(n: Vec3) -> usize {
+    const TAN_22_5: f32 = 0.414_213_57;
+    const TAN_67_5: f32 = 2.414_213_6;
+    const _: () = assert!(COLS == 16, "the quadrant split below assumes four columns per quadrant");
+    let (x, y) = (-n.x, -n.y);
+    let (ax, ay) = (x.abs(), y.abs());
+    let within = usize::from(ay > TAN_22_5 * ax) + usize::from(ay > ax) + usize::from(ay > TAN_67_5 * ax);
+    match (x >= 0.0, y >= 0.0) {
+        (true, true) => within,
+        (false, true) => 7 - within,
+        (false, false) => 8 + within,
+        (true, false) => 15 - within,
     }
 }
 

@@ -376,3 +376,34 @@ fn irradiance_fast_path_equals_the_sum_over_every_bin() {
     }
     assert!(compared >= 600, "only {compared} comparisons");
 }
+
+/// The fast path finds the arc of clipped bins from the column opposite the tilt, picked from
+/// the tilt's quadrant and three slope comparisons: tilts whose opposite azimuth lies on a
+/// column's edge or a quadrant's axis (where the pick may go either way) are still exact.
+#[test]
+fn irradiance_fast_path_is_exact_on_column_edges() {
+    let moments = bin_moments_by_quadrature();
+    let mut rng = SplitMix64::new(5);
+    let mut bins = [[0.0f32; 3]; BINS];
+    for l in bins.iter_mut() {
+        *l = [0, 1, 2].map(|_| 0.1 + rng.next_f32());
+    }
+    let light = LightSample::new(&bins, Vec3::Z);
+    for edge in 0..16 {
+        for nudge in [-1e-5f32, 0.0, 1e-5] {
+            for tilt_deg in [3.0f32, 30.0, 75.0] {
+                let phi = edge as f32 * std::f32::consts::TAU / 16.0 + nudge;
+                let tilt = tilt_deg.to_radians();
+                let n = Vec3::new(tilt.sin() * phi.cos(), tilt.sin() * phi.sin(), tilt.cos());
+                let exact = irradiance_f64(&moments, &bins, n.to_array().map(f64::from));
+                let fast = light.irradiance(n);
+                for c in 0..3 {
+                    assert!(
+                        (f64::from(fast[c]) - exact[c]).abs() <= 1e-4 * exact[c].max(1.0),
+                        "edge {edge}, nudge {nudge}, tilt {tilt_deg}°: {fast:?} vs {exact:?}"
+                    );
+                }
+            }
+        }
+    }
+}
