@@ -33,10 +33,14 @@ pub fn linear_to_srgb8(c: f32) -> u8 {
     (linear_to_srgb(c) * 255.0 + 0.5) as u8
 }
 
+/// The Rec. 709 / sRGB-primaries weights of R, G and B in luminance (on linear values) and in
+/// luma (the same weights on encoded values).
+pub const REC709_WEIGHTS: [f32; 3] = [0.2126, 0.7152, 0.0722];
+
 /// Rec. 709 / sRGB-primaries luminance of linear RGB.
 #[inline]
 pub fn luminance(c: [f32; 3]) -> f32 {
-    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+    REC709_WEIGHTS[0] * c[0] + REC709_WEIGHTS[1] * c[1] + REC709_WEIGHTS[2] * c[2]
 }
 
 #[cfg(test)]

@@ -45,7 +45,7 @@
 //! `loss.rs`) was set by the argument there, not tuned.
 
 /// Rec. 709 luma weights on sRGB values.
-const LUMA: [f32; 3] = [0.2126, 0.7152, 0.0722];
+const LUMA: [f32; 3] = psc_base::color::REC709_WEIGHTS;
 /// Gaussian smoothing before the differences, in pixels, and its truncation radius.
 pub const SIGMA: f32 = 1.0;
 pub const RADIUS: usize = 2;
