@@ -4,6 +4,8 @@
 #[allow(dead_code)] // the file serves several test crates
 #[path = "../../tests/src/dev_scenes.rs"]
 mod dev_scenes;
+#[path = "../../tests/src/not_run.rs"]
+mod not_run;
 
 use std::process::Command;
 

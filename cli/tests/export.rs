@@ -11,6 +11,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+#[path = "../../tests/src/not_run.rs"]
+mod not_run;
+
 use glam::Vec3;
 use gltf_json as json;
 use psc_render::scene::Scene;
@@ -365,7 +368,7 @@ fn missing(tool: &str, install: &str, ci_requires: bool, unavailable: &str) -> b
     let ci = std::env::var_os("CI").is_some();
     let refused = std::env::var_os(unavailable).is_some();
     assert!(!(ci && ci_requires && !refused), "{tool} is required under CI (install: {install})");
-    eprintln!("\n==== SKIPPED: {tool} not installed ({install}) ====\n");
+    not_run::say_skipped(&format!("{tool} not installed ({install})"));
     true
 }
 
@@ -474,7 +477,7 @@ fn mitsuba_renders_the_export_close_to_psc_render() {
 fn blender_imports_the_gltf_and_renders_a_frame() {
     let have = Command::new("blender").arg("--version").output().is_ok_and(|o| o.status.success());
     if !have {
-        eprintln!("\n==== SKIPPED: blender not installed (apt-get install blender python3-numpy) ====\n");
+        not_run::say_skipped("blender not installed (apt-get install blender python3-numpy)");
         return;
     }
     let dir = scratch("blender");

@@ -4,10 +4,12 @@
 //! loaded from outside; `psc render <fit>` renders it from a camera; `--set` of a colour changes
 //! that part's pixels in the expected direction and leaves the others; bad edits fail cleanly.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
+
+#[path = "../../tests/src/not_run.rs"]
+mod not_run;
 
 fn repo() -> PathBuf {
     let here = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -97,10 +99,8 @@ fn in_chromium(page: &Path, images: usize) {
         .into_iter()
         .find(|b| Command::new(b).arg("--version").output().is_ok_and(|o| o.status.success()))
     else {
-        let message =
-            "SKIPPED: the headless-browser check of report.html (no chromium installed; `apt-get install chromium`)";
-        // Straight to the process's stderr: `eprintln!` is captured and hidden when the test passes.
-        let _ = writeln!(std::io::stderr(), "\n*** {message} ***\n");
+        let message = "the headless-browser check of report.html (no chromium installed; `apt-get install chromium`)";
+        not_run::say_skipped(message);
         if std::env::var_os("CI").is_some() && std::env::var_os("PSC_CHROMIUM_INSTALL_FAILED").is_none() {
             panic!("{message}, and CI is set while .ci/run reported no failed install");
         }

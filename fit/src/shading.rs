@@ -55,11 +55,7 @@ fn bins() -> &'static BinGeometry {
     GEOMETRY.get_or_init(|| {
         let dt = (PI / 2.0) / ROWS as f32;
         let dp = 2.0 * PI / COLS as f32;
-        let mut g = BinGeometry {
-            moment: [Vec3::ZERO; BINS],
-            centre: [Vec3::ZERO; BINS],
-            omega: [0.0; BINS],
-        };
+        let mut g = BinGeometry { moment: [Vec3::ZERO; BINS], centre: [Vec3::ZERO; BINS], omega: [0.0; BINS] };
         for i in 0..ROWS {
             let (t0, t1) = (i as f64 * dt as f64, (i + 1) as f64 * dt as f64);
             // ∫ sin²θ dθ and ∫ sinθ cosθ dθ over the row.

@@ -13,15 +13,11 @@ use psc_render::scene::Scene;
 use psc_render::{LightRadiances, Renderer};
 use psc_runtime::library::{default_library_root, Library};
 
-fn dev_scene(name: &str) -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(name);
-    if dir.join("scene.json").is_file() {
-        return Some(dir);
-    }
-    assert!(std::env::var_os("CI").is_none(), "CI must have the shared dev scenes at {}", dir.display());
-    eprintln!("SKIPPED: the shared dev scenes are not at {}", dir.display());
-    None
-}
+#[allow(dead_code)] // the file serves several test crates
+#[path = "../../tests/src/dev_scenes.rs"]
+mod dev_scenes;
+#[path = "../../tests/src/not_run.rs"]
+mod not_run;
 
 fn copy_without_truth(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
@@ -107,7 +103,10 @@ fn contents(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
 
 #[test]
 fn fit_is_deterministic_across_thread_counts_and_never_reads_truth() {
-    let Some(scene) = dev_scene("dev_1") else { return };
+    let Some(scene) = dev_scenes::dev_scene("dev_1", "fit_is_deterministic_across_thread_counts_and_never_reads_truth")
+    else {
+        return;
+    };
     assert!(scene.join("truth").is_dir(), "the original keeps its truth/ for the comparison to mean something");
     let library = Library::load(&default_library_root()).unwrap();
     let tmp = std::env::temp_dir().join(format!("psc-fit-determinism-{}", std::process::id()));
@@ -132,7 +131,11 @@ fn fit_is_deterministic_across_thread_counts_and_never_reads_truth() {
 
 #[test]
 fn an_existing_output_folder_is_kept_unless_forced_and_refit_only_starts_from_it() {
-    let Some(scene_dir) = dev_scene("dev_4") else { return };
+    let Some(scene_dir) =
+        dev_scenes::dev_scene("dev_4", "an_existing_output_folder_is_kept_unless_forced_and_refit_only_starts_from_it")
+    else {
+        return;
+    };
     let library = Library::load(&default_library_root()).unwrap();
     let scene = Scene::load(&scene_dir).unwrap();
     let tmp = std::env::temp_dir().join(format!("psc-fit-existing-{}", std::process::id()));

@@ -5,8 +5,6 @@
 //! path-traced at the same pixels; the part means must agree. This is the contract that lets a fit under
 //! the layer be rendered by `psc render` and look like the photo.
 
-use std::path::{Path, PathBuf};
-
 use psc_fit::align::align_view;
 use psc_fit::layer::{MaterialState, Sampling, Workspace};
 use psc_fit::lighting::{self, GridSettings, ShadingGrid};
@@ -17,18 +15,14 @@ use psc_render::scene::{LightRadiances, Scene};
 use psc_render::{RenderOptions, Renderer};
 use psc_runtime::library::{default_library_root, Library};
 
-fn dev_scene(name: &str) -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes").join(name);
-    if dir.join("scene.json").is_file() {
-        return Some(dir);
-    }
-    assert!(std::env::var_os("CI").is_none(), "CI must have the shared dev scenes at {}", dir.display());
-    eprintln!("SKIPPED: the shared dev scenes are not at {}", dir.display());
-    None
-}
+#[allow(dead_code)] // the file serves several test crates
+#[path = "../../tests/src/dev_scenes.rs"]
+mod dev_scenes;
+#[path = "../../tests/src/not_run.rs"]
+mod not_run;
 
 fn check_scene(name: &str, library: &Library, graph: &str, uv: UvTransform) -> Vec<(String, usize, [f64; 3])> {
-    let Some(dir) = dev_scene(name) else { return Vec::new() };
+    let Some(dir) = dev_scenes::dev_scene(name, "layer_vs_path_tracer") else { return Vec::new() };
     let scene = Scene::load(&dir).unwrap();
     let n_parts = scene.mesh.part_names.len();
     let mut radiances = LightRadiances::unit(&scene);

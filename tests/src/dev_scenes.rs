@@ -3,9 +3,9 @@
 //! test harness's capture, so a passing run still shows it) and, when the environment variable
 //! `CI` is set, fails instead, since CI always has the scenes.
 //!
-//! Shared by file between test crates (`#[path]`), so it depends on `std` only.
+//! Shared by file between test crates (`#[path]`, beside `not_run.rs`, which it calls as
+//! `crate::not_run`), so it depends on `std` only.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// The folder holding `dev_1` … `dev_4`.
@@ -26,8 +26,7 @@ pub fn dev_scene(name: &str, test: &str) -> Option<PathBuf> {
     if std::env::var_os("CI").is_some() {
         panic!("{message}, and CI is set (CI always has ../shared/scenes)");
     }
-    // Straight to the process's stderr: `eprintln!` would be captured and hidden on success.
-    let _ = writeln!(std::io::stderr(), "\n*** NOT RUN: {message} (set CI=1 to make this a failure) ***\n");
+    crate::not_run::say_skipped(&format!("{message} (set CI=1 to make this a failure)"));
     None
 }
 

@@ -3,3 +3,4 @@
 #![forbid(unsafe_code)]
 
 pub mod dev_scenes;
+pub mod not_run;
