@@ -232,8 +232,8 @@ fn for_clipped_bins(n: Vec3, mut f: impl FnMut(usize, f32)) {
 /// The column whose centre azimuth is nearest the direction opposite the normal's tilt,
 /// `atan2(−n.y, −n.x)`, without the arctangent or a search over the columns: the quadrant from
 /// the signs, the column within it from comparing |y| with |x| tan 22.5°, |x| and |x| tan 67.5°
-/// (the columns' edges). A tie on an edge may pick either neighbour: the arc walk that follows
-/// starts from the neighbour of a column that is not clipped.
+/// (the columns' edges). On an edge either column may be picked: [`for_clipped_bins`] also
+/// looks at the neighbours of a centre that is not clipped, so both picks find the same bins.
 #[inline]
 fn opposite_column(n: Vec3) -> usize {
     const TAN_22_5: f32 = 0.414_213_57;
