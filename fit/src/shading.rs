@@ -114,7 +114,7 @@ impl LightSample {
         LightSample { linear, radiance: Box::new(*radiance), specular }
     }
 
-    /// Σ weights[i] · samples[i] (bilinear interpolation between grid cells; everything here
+    /// `Σ weights[i] · samples[i]` (bilinear interpolation between grid cells; everything here
     /// is linear in the radiance).
     pub fn blend(samples: &[&LightSample], weights: &[f32]) -> LightSample {
         let mut out = LightSample {

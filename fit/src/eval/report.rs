@@ -1,5 +1,5 @@
 //! The evaluation's outputs: the Table-2-style text table, the JSON (`photoscene-eval/1`), and
-//! the eval folder (eval.json + renders/<geometry>/<method>/<view>.png), written whole or not at
+//! the eval folder (`eval.json` + `renders/<geometry>/<method>/<view>.png`), written whole or not at
 //! all.
 
 use std::path::{Path, PathBuf};
