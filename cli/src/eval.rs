@@ -51,7 +51,7 @@ pub struct Args {
     /// Path depth, Mitsuba convention.
     #[arg(long, default_value_t = 6)]
     max_depth: u32,
-    /// Output folder (default: <out>/eval); replaced as a whole.
+    /// Output folder (default: `<out>/eval`); replaced as a whole.
     #[arg(long)]
     eval_dir: Option<PathBuf>,
     /// Also write the JSON here.

@@ -235,7 +235,7 @@ pub enum RoughnessSource {
 }
 
 /// Albedo from an image texture, roughness constant or from a texture, optional tangent-space
-/// normal map (RGB in [0,1] encoding [-1,1], linear).
+/// normal map (RGB in `[0, 1]` encoding `[-1, 1]`, linear).
 #[derive(Clone, Debug)]
 pub struct ImageMaterial {
     pub albedo: Texture,

@@ -96,7 +96,7 @@ pub fn load_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Mesh, RenderE
     load_obj_with_progress(path, warnings, &NoProgress)
 }
 
-/// [`load_obj`], reporting the stage "loading <file>" in bytes parsed to `progress`.
+/// [`load_obj`], reporting the stage "loading `<file>`" in bytes parsed to `progress`.
 pub fn load_obj_with_progress(
     path: &Path,
     warnings: &mut Vec<String>,
