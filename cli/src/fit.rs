@@ -69,6 +69,11 @@ pub struct Args {
     /// Most photo pixels a part is fitted on (larger parts: the window with the most usable pixels).
     #[arg(long, default_value_t = 4096)]
     fit_pixels: usize,
+    /// Photos with more pixels are fitted at a working resolution within this many: averaged
+    /// over blocks of the smallest whole number of pixels that brings them within it (0: always
+    /// the full resolution, which for a 12-megapixel photo takes hours).
+    #[arg(long, default_value_t = psc_fit::pipeline::DEFAULT_MAX_PHOTO_PIXELS)]
+    max_photo_pixels: usize,
     /// At most this many rounds of global light solve + albedo/roughness re-fit after the
     /// first fit (they stop early once no light or exposure moves by more than 2%).
     #[arg(long, default_value_t = 3)]
@@ -176,6 +181,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
     options.fit.max_iterations = args.iterations;
     options.refit_rounds = args.refit_rounds;
     options.fit_pixels = args.fit_pixels.max(1);
+    options.max_photo_pixels = args.max_photo_pixels;
     let drawer = Drawer::new(args.quiet);
     let progress = FitProgress { drawer: &drawer, open: AtomicBool::new(false) };
     let result = match &previous {

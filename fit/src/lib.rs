@@ -34,5 +34,6 @@ pub mod shading;
 pub mod targets;
 pub mod uvmap;
 pub mod views;
+pub mod working;
 
 pub use error::FitError;

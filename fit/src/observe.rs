@@ -13,6 +13,7 @@ use psc_render::scene::View;
 use rayon::prelude::*;
 
 use crate::error::FitError;
+use crate::working::WorkingRaster;
 
 /// Marks "no part" in per-pixel part arrays.
 pub const NO_PART: u32 = u32::MAX;
@@ -24,6 +25,8 @@ pub struct Photo {
     pub height: usize,
     pub encoded: Vec<[f32; 3]>,
     pub linear: Vec<[f32; 3]>,
+    /// Per pixel, whether it is clipped (see [`Photo::clipped`]).
+    clip: Vec<bool>,
 }
 
 impl Photo {
@@ -47,13 +50,26 @@ impl Photo {
                 bad / img.width
             )));
         }
-        Ok(Photo { width: img.width, height: img.height, encoded, linear })
+        let clip = encoded.iter().map(|c: &[f32; 3]| c.iter().any(|&v| v >= 0.99)).collect();
+        Ok(Photo { width: img.width, height: img.height, encoded, linear, clip })
     }
 
-    /// Whether any channel of pixel `i` is at or above 0.99 of full scale (clipped: its true
-    /// value is unknown).
+    /// A photo from its values (`width × height`, row-major) and clipping mask.
+    pub fn from_parts(
+        width: usize,
+        height: usize,
+        encoded: Vec<[f32; 3]>,
+        linear: Vec<[f32; 3]>,
+        clip: Vec<bool>,
+    ) -> Photo {
+        assert!(encoded.len() == width * height && linear.len() == width * height && clip.len() == width * height);
+        Photo { width, height, encoded, linear, clip }
+    }
+
+    /// Whether pixel `i` is clipped: its true value is unknown. In a photo as loaded, any channel
+    /// at or above 0.99 of full scale; at a working raster, any such pixel in its block.
     pub fn clipped(&self, i: usize) -> bool {
-        self.encoded[i].iter().any(|&c| c >= 0.99)
+        self.clip[i]
     }
 }
 
@@ -118,12 +134,21 @@ pub struct ViewObservation {
     /// Per photo pixel, the part its label names, or [`NO_PART`]; `None` without a label image.
     pub labels: Option<Vec<u32>>,
     pub geo: GeoBuffer,
+    /// Where this observation's raster lies in the photo file (`camera`, `photo`, `labels` and
+    /// `geo` are all at it).
+    pub raster: WorkingRaster,
 }
 
 impl ViewObservation {
     /// `part_names` are the model's parts; labels naming other parts count as unlabelled (the
-    /// scene loader has already warned about them).
-    pub fn new(view: &View, part_names: &[String], geometry: &SceneGeometry) -> Result<Self, FitError> {
+    /// scene loader has already warned about them). A photo of more than `max_pixels` pixels
+    /// (0: no limit) is observed at a working raster (see [`crate::working`]).
+    pub fn new(
+        view: &View,
+        part_names: &[String],
+        geometry: &SceneGeometry,
+        max_pixels: usize,
+    ) -> Result<Self, FitError> {
         let photo = Photo::load(&view.image)?;
         if (photo.width, photo.height) != (view.width, view.height) {
             return Err(FitError::Input(format!(
@@ -141,10 +166,14 @@ impl ViewObservation {
                 .iter()
                 .filter_map(|(&value, name)| part_names.iter().position(|p| p == name).map(|k| (value, k as u32)))
                 .collect();
-            l.data.iter().map(|v| lut.get(v).copied().unwrap_or(NO_PART)).collect()
+            l.data.iter().map(|v| lut.get(v).copied().unwrap_or(NO_PART)).collect::<Vec<u32>>()
         });
-        let geo = GeoBuffer::trace(geometry, &view.camera);
-        Ok(ViewObservation { name: view.name.clone(), camera: view.camera.clone(), photo, labels, geo })
+        let raster = WorkingRaster::for_photo(photo.width, photo.height, max_pixels);
+        let camera = raster.camera(&view.camera);
+        let labels = labels.map(|l| raster.labels(&l, photo.width));
+        let photo = raster.photo(&photo);
+        let geo = GeoBuffer::trace(geometry, &camera);
+        Ok(ViewObservation { name: view.name.clone(), camera, photo, labels, geo, raster })
     }
 
     pub fn pixels(&self) -> usize {

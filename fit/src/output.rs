@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use psc_base::output::{Replace, StagedDir};
-use psc_render::scene::Scene;
+use psc_render::scene::{Scene, View};
 use psc_render::{image_io, RenderOptions, Renderer};
 use psc_runtime::bake::{bake, write_maps};
 use psc_runtime::library::Library;
@@ -19,6 +19,7 @@ use serde_json::{json, Value};
 use crate::error::FitError;
 use crate::observe::Photo;
 use crate::pipeline::{FitResult, PartResult, PreviousFit};
+use crate::working::WorkingRaster;
 
 /// What to write besides the JSON files.
 #[derive(Clone, Debug)]
@@ -177,10 +178,17 @@ pub fn write_into(
                                        exposure: result.exposure.clone() },
             "parts": result.parts.iter().map(|p| json!({"name": p.name, "status": p.status, "graph": p.graph,
                 "loss": p.loss.total, "view": p.view})).collect::<Vec<_>>(),
+            "views": scene.views.iter().enumerate().map(|(i, v)| json!({"name": v.name,
+                "photo_size": [v.width, v.height], "working_raster": view_raster(result, i, v)})).collect::<Vec<_>>(),
             "renders": renders.iter().map(|p| p.strip_prefix(dir).unwrap_or(p).display().to_string()).collect::<Vec<_>>(),
             "timings_s": timings,
         }),
     )
+}
+
+/// The raster the scene's view `index` was fitted at (the photo's own where the fit has none).
+fn view_raster(result: &FitResult, index: usize, view: &View) -> WorkingRaster {
+    result.rasters.get(index).copied().unwrap_or_else(|| WorkingRaster::for_photo(view.width, view.height, 0))
 }
 
 /// The RGB exposure of the scene's view `index` (1 where the fit has none).
@@ -219,14 +227,12 @@ fn render_views(
     let renderer = Renderer::new(scene, result.bindings(library)?, &result.light_radiances(scene))?;
     let mut written = Vec::new();
     for (index, view) in scene.views.iter().enumerate() {
-        let opts = RenderOptions {
-            width: view.width,
-            height: view.height,
-            spp: options.render_spp,
-            seed: options.seed,
-            ..Default::default()
-        };
-        let mut out = renderer.render(&view.camera, &opts)?;
+        // At the raster the view was fitted at, beside the photo at that raster.
+        let raster = view_raster(result, index, view);
+        let (w, h) = (raster.width, raster.height);
+        let opts =
+            RenderOptions { width: w, height: h, spp: options.render_spp, seed: options.seed, ..Default::default() };
+        let mut out = renderer.render(&raster.camera(&view.camera), &opts)?;
         let exposure = view_exposure(result, index);
         for p in out.image.iter_mut() {
             for (x, e) in p.iter_mut().zip(exposure) {
@@ -234,11 +240,10 @@ fn render_views(
             }
         }
         let path = renders_dir.join(format!("{}.png", file_stem(&view.name)));
-        image_io::write_rgb(&path, view.width, view.height, &out.image)?;
+        image_io::write_rgb(&path, w, h, &out.image)?;
         written.push(path);
         // Photo | render, for looking at them together.
-        let photo = Photo::load(&view.image)?;
-        let (w, h) = (view.width, view.height);
+        let photo = raster.photo(&Photo::load(&view.image)?);
         let mut pair = vec![[0.0f32; 3]; 2 * w * h];
         for y in 0..h {
             for x in 0..w {

@@ -47,7 +47,14 @@ pub struct FitOptions {
     pub refit_rounds: usize,
     /// Most iterations of a re-fit.
     pub refit_iterations: u32,
+    /// Photos with more pixels are fitted at a working raster within this many (0: no limit;
+    /// see [`crate::working`]).
+    pub max_photo_pixels: usize,
 }
+
+/// About 420×315: the dev scenes' 320×240 photos are fitted as they are; a 640×480 photo at
+/// half size, a 12-megapixel one at a tenth.
+pub const DEFAULT_MAX_PHOTO_PIXELS: usize = 1 << 17;
 
 impl Default for FitOptions {
     fn default() -> Self {
@@ -64,6 +71,7 @@ impl Default for FitOptions {
             features: FeatureConfig::default(),
             refit_rounds: 3,
             refit_iterations: 150,
+            max_photo_pixels: DEFAULT_MAX_PHOTO_PIXELS,
         }
     }
 }
@@ -203,11 +211,26 @@ fn run(
         .views
         .iter()
         .map(|v| {
-            let obs = ViewObservation::new(v, &scene.mesh.part_names, renderer.geometry());
+            let obs = ViewObservation::new(v, &scene.mesh.part_names, renderer.geometry(), options.max_photo_pixels);
             progress.advance(1);
             obs
         })
         .collect::<Result<_, _>>()?;
+    for (v, obs) in scene.views.iter().zip(&views) {
+        let r = obs.raster;
+        if !r.is_identity() {
+            progress.note(&format!(
+                "{}: the {}x{} photo is fitted at {}x{} (blocks of {f}x{f} pixels; --max-photo-pixels {})",
+                v.name,
+                v.width,
+                v.height,
+                r.width,
+                r.height,
+                options.max_photo_pixels,
+                f = r.factor
+            ));
+        }
+    }
     let aligned: Vec<Vec<AlignedPart>> = views.iter().enumerate().map(|(i, o)| align_view(o, i, n_parts)).collect();
     lap("observe and align", &mut timings);
 
@@ -287,6 +310,7 @@ fn run(
         light_source,
         light_rounds: Vec::new(),
         exposure,
+        rasters: views.iter().map(|v| v.raster).collect(),
         timings,
     };
     let mut shading = shading;

@@ -17,6 +17,7 @@ use crate::light_solve::LightSolve;
 use crate::loss::LossValue;
 use crate::select::Ranked;
 use crate::views::ViewScore;
+use crate::working::WorkingRaster;
 
 /// How a part got its material.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -93,6 +94,9 @@ pub struct FitResult {
     /// scene and that view's photo. The last light solve's (1 for a single view, and until the
     /// first solve); with `--lights`, the previous fit's or 1.
     pub exposure: Vec<[f32; 3]>,
+    /// Per view (scene order), the raster it was fitted at (see [`crate::working`]); the
+    /// re-renders are made at it.
+    pub rasters: Vec<WorkingRaster>,
     /// (stage, seconds) in order.
     pub timings: Vec<(String, f64)>,
 }

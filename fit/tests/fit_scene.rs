@@ -309,7 +309,7 @@ fn the_fit_ends_with_part_colours_the_path_tracer_agrees_with() {
     let views: Vec<ViewObservation> = scene
         .views
         .iter()
-        .map(|v| ViewObservation::new(v, &scene.mesh.part_names, renderer.geometry()).unwrap())
+        .map(|v| ViewObservation::new(v, &scene.mesh.part_names, renderer.geometry(), 0).unwrap())
         .collect();
     let check = refit::solve_lights(&renderer, &views, 99).unwrap();
     let observed: Vec<usize> =

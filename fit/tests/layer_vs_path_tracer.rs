@@ -30,7 +30,7 @@ fn check_scene(name: &str, library: &Library, graph: &str, uv: UvTransform) -> V
     let mut renderer = Renderer::new(&scene, scene.mtl_materials(&mut Vec::new()), &radiances).unwrap();
     let mut view = scene.views[0].clone();
     view.labels = None; // M_photo = M_geo: the photo's pixels play no part here
-    let obs = ViewObservation::new(&view, &scene.mesh.part_names, renderer.geometry()).unwrap();
+    let obs = ViewObservation::new(&view, &scene.mesh.part_names, renderer.geometry(), 0).unwrap();
     let views = vec![obs];
     let medians = lighting::median_materials(&views, n_parts);
     let colours: Vec<[f32; 3]> = medians.iter().map(|m| m.eval([0.5, 0.5]).albedo).collect();

@@ -42,6 +42,19 @@ pub struct Camera {
     pub height: usize,
     tan_half_y: f32,
     tan_half_x: f32,
+    /// Where this camera's raster lies in the raster its field of view was given for (see
+    /// [`Camera::window`]); the identity for a camera made by [`Camera::new`].
+    raster: RasterWindow,
+}
+
+/// Pixel `(i, j)` of a windowed camera covers pixels `[x0 + i·step, x0 + (i+1)·step) ×
+/// [y0 + j·step, …)` of the full raster, which is `full_width × full_height`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct RasterWindow {
+    origin: [f32; 2],
+    step: f32,
+    full_width: f32,
+    full_height: f32,
 }
 
 impl Camera {
@@ -90,14 +103,32 @@ impl Camera {
         let up = right.cross(forward);
         let tan_half_y = (spec.fov_y_deg.to_radians() * 0.5).tan();
         let tan_half_x = tan_half_y * width as f32 / height as f32;
-        Ok(Camera { position, forward, right, up, width, height, tan_half_y, tan_half_x })
+        let raster = RasterWindow { origin: [0.0; 2], step: 1.0, full_width: width as f32, full_height: height as f32 };
+        Ok(Camera { position, forward, right, up, width, height, tan_half_y, tan_half_x, raster })
+    }
+
+    /// The same camera seen through a coarser raster: `width × height` pixels of `step × step`
+    /// pixels of this one each, the first at pixel `origin` (a box-downsampled image of this
+    /// camera's, cropped to whole blocks). The rays through block centres are exactly this
+    /// camera's rays through those points.
+    pub fn window(&self, origin: [usize; 2], step: usize, width: usize, height: usize) -> Camera {
+        let r = self.raster;
+        let raster = RasterWindow {
+            origin: [r.origin[0] + origin[0] as f32 * r.step, r.origin[1] + origin[1] as f32 * r.step],
+            step: r.step * step as f32,
+            ..r
+        };
+        Camera { width, height, raster, ..self.clone() }
     }
 
     /// Unit direction of the ray through continuous raster position (x, y).
     #[inline]
     pub fn direction(&self, x: f32, y: f32) -> Vec3 {
-        let sx = (2.0 * x / self.width as f32 - 1.0) * self.tan_half_x;
-        let sy = (1.0 - 2.0 * y / self.height as f32) * self.tan_half_y;
+        let r = &self.raster;
+        // Exactly `x` and `y` for an unwindowed camera (0 + x·1).
+        let (x, y) = (r.origin[0] + x * r.step, r.origin[1] + y * r.step);
+        let sx = (2.0 * x / r.full_width - 1.0) * self.tan_half_x;
+        let sy = (1.0 - 2.0 * y / r.full_height) * self.tan_half_y;
         (self.forward + self.right * sx + self.up * sy).normalize()
     }
 
@@ -110,7 +141,9 @@ impl Camera {
         }
         let sx = d.dot(self.right) / z / self.tan_half_x;
         let sy = d.dot(self.up) / z / self.tan_half_y;
-        Some([(sx + 1.0) * 0.5 * self.width as f32, (1.0 - sy) * 0.5 * self.height as f32])
+        let r = &self.raster;
+        let full = [(sx + 1.0) * 0.5 * r.full_width, (1.0 - sy) * 0.5 * r.full_height];
+        Some([(full[0] - r.origin[0]) / r.step, (full[1] - r.origin[1]) / r.step])
     }
 }
 
@@ -153,4 +186,44 @@ pub fn load_camera_file(path: &Path) -> Result<CameraFile, RenderError> {
         }
     };
     Ok(CameraFile { camera, size })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera(width: usize, height: usize) -> Camera {
+        let spec =
+            CameraSpec { position: [0.3, 1.2, 2.0], look_at: [0.1, 0.9, 0.0], up: [0.0, 1.0, 0.0], fov_y_deg: 55.0 };
+        Camera::new(&spec, width, height, "test").unwrap()
+    }
+
+    #[test]
+    fn a_window_shoots_the_rays_of_the_blocks_it_stands_for() {
+        let full = camera(643, 481);
+        // 3×3 blocks, the remainder (643 − 3·213 = 4, 481 − 3·160 = 1) split around them.
+        let coarse = full.window([2, 0], 3, 213, 160);
+        for (i, j) in [(0usize, 0usize), (212, 159), (100, 7), (5, 120)] {
+            let centre = full.direction(2.0 + 3.0 * i as f32 + 1.5, 3.0 * j as f32 + 1.5);
+            let d = coarse.direction(i as f32 + 0.5, j as f32 + 0.5);
+            assert!((d - centre).length() < 1e-6, "block ({i}, {j}): {d} against {centre}");
+            // Projection inverts it, in the coarse raster.
+            let p = coarse.project(coarse.position + d * 3.0).unwrap();
+            assert!((p[0] - (i as f32 + 0.5)).abs() < 1e-3 && (p[1] - (j as f32 + 0.5)).abs() < 1e-3, "{p:?}");
+        }
+        // A window of a window composes.
+        let twice = full.window([1, 1], 2, 300, 200).window([3, 2], 2, 70, 40);
+        let d = twice.direction(0.25, 0.75);
+        let e = full.direction(1.0 + 2.0 * (3.0 + 2.0 * 0.25), 1.0 + 2.0 * (2.0 + 2.0 * 0.75));
+        assert!((d - e).length() < 1e-6, "{d} against {e}");
+    }
+
+    #[test]
+    fn an_unwindowed_camera_maps_rasters_as_before() {
+        let c = camera(320, 240);
+        let d = c.direction(17.5, 200.25);
+        let sx = (2.0 * 17.5 / 320.0 - 1.0) * c.tan_half_x;
+        let sy = (1.0 - 2.0 * 200.25 / 240.0) * c.tan_half_y;
+        assert_eq!(d, (c.forward + c.right * sx + c.up * sy).normalize());
+    }
 }

@@ -155,3 +155,31 @@ pub fn write_gray16(path: &Path, width: usize, height: usize, data: &[u16]) -> R
         .expect("sized buffer");
     atomic_write(path, &encode_png(image::DynamicImage::ImageLuma16(buf))?)
 }
+
+/// The `out_width × out_height` image whose pixel `(i, j)` is the mean of the `factor × factor`
+/// block of `data` (row-major, `width` wide) whose top-left pixel is `origin + factor·(i, j)`:
+/// a box downsampling, in whatever space `data` is in (linear light, for a camera's image).
+pub fn block_average(
+    data: &[[f32; 3]],
+    width: usize,
+    origin: [usize; 2],
+    factor: usize,
+    out_width: usize,
+    out_height: usize,
+) -> Vec<[f32; 3]> {
+    let inverse = 1.0 / (factor * factor) as f64;
+    (0..out_width * out_height)
+        .map(|i| {
+            let (x0, y0) = (origin[0] + (i % out_width) * factor, origin[1] + (i / out_width) * factor);
+            let mut sum = [0.0f64; 3];
+            for row in data[y0 * width..].chunks(width).take(factor) {
+                for p in &row[x0..x0 + factor] {
+                    for c in 0..3 {
+                        sum[c] += f64::from(p[c]);
+                    }
+                }
+            }
+            sum.map(|s| (s * inverse) as f32)
+        })
+        .collect()
+}

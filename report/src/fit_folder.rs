@@ -149,6 +149,27 @@ impl FitFolder {
     }
 
     /// The path of the fit's re-render of view `name`, if there is one.
+    /// The raster `psc fit` fitted and re-rendered view `name` at, when it was not the photo's
+    /// own: (origin, factor, width, height) as `result.json`'s `views` records it.
+    pub fn working_raster(&self, name: &str) -> Option<([usize; 2], usize, usize, usize)> {
+        let view = self
+            .result
+            .get("views")?
+            .as_array()?
+            .iter()
+            .find(|v| v.get("name").and_then(Value::as_str) == Some(name))?;
+        let r = view.get("working_raster")?;
+        let n = |v: &Value| v.as_u64().map(|x| x as usize);
+        let origin = r.get("origin")?.as_array()?;
+        let raster = (
+            [n(origin.first()?)?, n(origin.get(1)?)?],
+            n(r.get("factor")?)?,
+            n(r.get("width")?)?,
+            n(r.get("height")?)?,
+        );
+        (raster.1 > 1).then_some(raster)
+    }
+
     pub fn render_of(&self, name: &str) -> Option<PathBuf> {
         let p = self.dir.join("renders").join(format!("{}.png", file_stem(name)));
         p.is_file().then_some(p)

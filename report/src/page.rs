@@ -1,6 +1,7 @@
 //! The page: a table of contents, then the views, the parts, the lights, the evaluation and the
 //! run, from a [`FitFolder`]. Pieces the folder lacks are said to be "not available".
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
@@ -149,7 +150,7 @@ fn views(fit: &FitFolder, photos: &BTreeMap<String, Result<Rgb8, String>>) -> St
             Err(e) => s.push_str(&missing("Re-render", e)),
         }
         match (photo, &render) {
-            (Some(Ok(p)), Ok(r)) => match difference(p, r) {
+            (Some(Ok(p)), Ok(r)) => match difference(&photo_at_render_raster(fit, &name, p, r), r) {
                 Some((d, mean)) => s.push_str(&figure(
                     &img(&d.fit_within(VIEW_SIDE).data_uri(), "difference", "view"),
                     &format!("|photo − render| ×{DIFFERENCE_GAIN}; mean {} of full scale", num(mean)),
@@ -164,6 +165,21 @@ fn views(fit: &FitFolder, photos: &BTreeMap<String, Result<Rgb8, String>>) -> St
         s.push_str("</div>");
     }
     s
+}
+
+/// The photo at the raster its re-render was made at: itself, or, for a view `psc fit` fitted at
+/// a working raster, its block average there.
+fn photo_at_render_raster<'a>(fit: &FitFolder, view: &str, photo: &'a Rgb8, render: &Rgb8) -> Cow<'a, Rgb8> {
+    match fit.working_raster(view) {
+        Some((origin, factor, w, h))
+            if (w, h) == (render.width, render.height)
+                && origin[0] + w * factor <= photo.width
+                && origin[1] + h * factor <= photo.height =>
+        {
+            Cow::Owned(photo.block_average(origin, factor, w, h))
+        }
+        _ => Cow::Borrowed(photo),
+    }
 }
 
 /// The crop of the part in its view, from the photo and (when there) the render.

@@ -32,6 +32,16 @@ impl Rgb8 {
         Ok(Rgb8 { width: img.width() as usize, height: img.height() as usize, data: img.into_raw() })
     }
 
+    /// The image box-downsampled in linear light: `width × height` blocks of `factor × factor`
+    /// pixels, the first at `origin` (how `psc fit` sees a photo it fits at a working raster).
+    pub fn block_average(&self, origin: [usize; 2], factor: usize, width: usize, height: usize) -> Rgb8 {
+        use psc_base::color::{linear_to_srgb8, srgb_to_linear};
+        let linear: Vec<[f32; 3]> =
+            self.data.chunks(3).map(|p| [0, 1, 2].map(|c| srgb_to_linear(f32::from(p[c]) / 255.0))).collect();
+        let small = psc_render::image_io::block_average(&linear, self.width, origin, factor, width, height);
+        Rgb8 { width, height, data: small.iter().flat_map(|p| p.map(linear_to_srgb8)).collect() }
+    }
+
     /// PNG bytes of the image.
     pub fn png(&self) -> Vec<u8> {
         use image::ImageEncoder;
