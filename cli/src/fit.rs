@@ -71,8 +71,8 @@ pub struct Args {
     fit_pixels: usize,
     /// Photos with more pixels are fitted at a working resolution within this many: averaged
     /// over blocks of the smallest whole number of pixels that brings them within it (0: always
-    /// the full resolution, which for a 12-megapixel photo takes hours).
-    #[arg(long, default_value_t = psc_fit::pipeline::DEFAULT_MAX_PHOTO_PIXELS)]
+    /// the full resolution, which for a 12-megapixel photo takes hours; else at least 16384).
+    #[arg(long, default_value_t = psc_fit::pipeline::DEFAULT_MAX_PHOTO_PIXELS, value_parser = parse_photo_budget)]
     max_photo_pixels: usize,
     /// At most this many rounds of global light solve + albedo/roughness re-fit after the
     /// first fit (they stop early once no light or exposure moves by more than 2%).
@@ -87,6 +87,20 @@ pub struct Args {
     /// No progress output.
     #[arg(long)]
     quiet: bool,
+}
+
+/// Fewer working pixels leave too few for a part's texture (a fit wants 500 usable pixels of a
+/// part) and for the light estimate.
+const MIN_PHOTO_BUDGET: usize = 16_384;
+
+fn parse_photo_budget(s: &str) -> Result<usize, String> {
+    let n: usize = s.parse().map_err(|e| format!("{e}"))?;
+    if n != 0 && n < MIN_PHOTO_BUDGET {
+        return Err(format!(
+            "{n} pixels are too few to fit a room at; give 0 (full resolution) or at least {MIN_PHOTO_BUDGET}"
+        ));
+    }
+    Ok(n)
 }
 
 fn parse_pair(s: &str) -> Result<(String, String), String> {

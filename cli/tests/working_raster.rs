@@ -130,3 +130,18 @@ fn a_fit_at_a_working_raster_renders_and_reports_at_it() {
     assert!(!html.contains(&format!("the render {w}×{h}")), "the report compared images of different sizes");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_budget_too_small_to_fit_at_is_refused_before_any_work() {
+    let out = scratch("refused").join("fit");
+    for (budget, says) in [("100", "too few to fit a room at"), ("16383", "at least 16384"), ("lots", "invalid")] {
+        let o = Command::new(env!("CARGO_BIN_EXE_psc"))
+            .args(["fit", repo().join("examples/room").to_str().unwrap(), "--out", out.to_str().unwrap()])
+            .args(["--max-photo-pixels", budget])
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{budget}: {}", text(&o));
+        assert!(text(&o).contains(says) && text(&o).contains("--max-photo-pixels"), "{budget}: {}", text(&o));
+        assert!(!out.exists(), "{budget}: an output folder was made");
+    }
+}
