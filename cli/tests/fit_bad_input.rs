@@ -6,28 +6,19 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+#[path = "../../tests/src/folders.rs"]
+mod folders;
+use folders::copy_tree;
+
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn copy_tree(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.file_type().unwrap().is_dir() {
-            copy_tree(&entry.path(), &target);
-        } else {
-            std::fs::copy(entry.path(), &target).unwrap();
-        }
-    }
 }
 
 /// A scratch folder holding a copy of the example room at `<scratch>/room`.
 fn room(case: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("psc-fit-bad-{}-{case}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    copy_tree(&repo().join("examples/room"), &dir.join("room"));
+    copy_tree(&repo().join("examples/room"), &dir.join("room"), &[]);
     dir
 }
 
@@ -129,7 +120,7 @@ fn light_files_with_bad_radiances() {
 fn a_library_with_a_broken_graph() {
     let s = room("library");
     let lib = s.join("room/lib");
-    copy_tree(&repo().join("graphs"), &lib);
+    copy_tree(&repo().join("graphs"), &lib, &[]);
     std::fs::write(lib.join("broken.psg"), "graph broken { output albedo = ; }\n").unwrap();
     let err = fails(&s, &["--lib", lib.to_str().unwrap()]);
     assert!(err.contains("broken.psg:1:"), "{err}");

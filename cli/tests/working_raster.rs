@@ -12,6 +12,10 @@ use psc_fit::observe::ViewObservation;
 use psc_fit::working::WorkingRaster;
 use psc_render::scene::Scene;
 
+#[path = "../../tests/src/folders.rs"]
+mod folders;
+use folders::copy_tree;
+
 fn repo() -> PathBuf {
     let here = Path::new(env!("CARGO_MANIFEST_DIR"));
     here.parent().unwrap_or(here).to_path_buf()
@@ -21,24 +25,11 @@ fn text(o: &Output) -> String {
     format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
 }
 
-fn copy_tree(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.file_type().unwrap().is_dir() {
-            copy_tree(&entry.path(), &target);
-        } else {
-            std::fs::copy(entry.path(), target).unwrap();
-        }
-    }
-}
-
 /// The example room with every pixel of its photo and label image repeated 2×2, in `dir`.
 fn doubled_example(dir: &Path) -> PathBuf {
     let scene = dir.join("room");
     let _ = std::fs::remove_dir_all(&scene);
-    copy_tree(&repo().join("examples/room"), &scene);
+    copy_tree(&repo().join("examples/room"), &scene, &[]);
     for name in ["views/view0.png", "views/view0_parts.png"] {
         let path = scene.join(name);
         let img = image::open(&path).unwrap();

@@ -7,6 +7,10 @@ use std::sync::OnceLock;
 use psc_fit::eval::{evaluate, write_outputs, EvalOptions, Evaluation, FitFiles, Geometry, Method, ViewKind};
 use psc_runtime::library::{default_library_root, Library};
 
+#[path = "../../tests/src/folders.rs"]
+mod folders;
+use folders::copy_tree;
+
 fn scene() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/dev_4")
 }
@@ -209,23 +213,6 @@ fn input_views_are_rendered_at_the_fits_exposure() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Copy a folder tree.
-fn copy_tree(from: &Path, to: &Path, skip: &dyn Fn(&Path) -> bool) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let p = e.unwrap().path();
-        if skip(&p) {
-            continue;
-        }
-        let dest = to.join(p.file_name().unwrap());
-        if p.is_dir() {
-            copy_tree(&p, &dest, skip);
-        } else {
-            std::fs::copy(&p, &dest).unwrap();
-        }
-    }
-}
-
 /// Runs the evaluation expecting an error containing `needle`, and checks it wrote nothing.
 fn expect_error(scene: &Path, fit: &FitFiles, opts: &EvalOptions, needle: &str) {
     let dir = fit.materials.parent().unwrap();
@@ -299,19 +286,19 @@ fn bad_scenes_are_clear_errors() {
 
     // No truth/.
     let bare = dir.join("bare");
-    copy_tree(&scene(), &bare, &|p| p.file_name().is_some_and(|n| n == "truth"));
+    copy_tree(&scene(), &bare, &["truth"]);
     expect_error(&bare, &fit, &opts, "no truth/");
 
     // A novel view whose label image has another size than its image.
     let odd = dir.join("odd");
-    copy_tree(&scene(), &odd, &|_| false);
+    copy_tree(&scene(), &odd, &[]);
     psc_render::image_io::write_gray16(&odd.join("truth/novel/novel0_parts.png"), 160, 120, &vec![1u16; 160 * 120])
         .unwrap();
     expect_error(&odd, &fit, &opts, "160x120");
 
     // The true geometry asked for but absent.
     let no_mesh = dir.join("no_mesh");
-    copy_tree(&scene(), &no_mesh, &|p| p.file_name().is_some_and(|n| n == "scene_true.obj"));
+    copy_tree(&scene(), &no_mesh, &["scene_true.obj"]);
     let truth_opts = quick(&[Method::PixelMedian], &[ViewKind::Input], &[Geometry::Truth], 1);
     expect_error(&no_mesh, &fit, &truth_opts, "scene_true.obj");
     let _ = std::fs::remove_dir_all(&dir);

@@ -16,25 +16,11 @@ use psc_runtime::library::{default_library_root, Library};
 #[allow(dead_code)] // the file serves several test crates
 #[path = "../../tests/src/dev_scenes.rs"]
 mod dev_scenes;
+#[path = "../../tests/src/folders.rs"]
+mod folders;
 #[path = "../../tests/src/not_run.rs"]
 mod not_run;
-
-fn copy_without_truth(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let name = entry.file_name();
-        if name == "truth" {
-            continue;
-        }
-        let target = to.join(&name);
-        if entry.file_type().unwrap().is_dir() {
-            copy_without_truth(&entry.path(), &target);
-        } else {
-            std::fs::copy(entry.path(), target).unwrap();
-        }
-    }
-}
+use folders::copy_tree;
 
 fn small_options() -> FitOptions {
     let mut o = FitOptions { seed: 7, ..Default::default() };
@@ -112,7 +98,7 @@ fn fit_is_deterministic_across_thread_counts_and_never_reads_truth() {
     let tmp = std::env::temp_dir().join(format!("psc-fit-determinism-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
     let copy = tmp.join("dev_1_without_truth");
-    copy_without_truth(&scene, &copy);
+    copy_tree(&scene, &copy, &["truth"]);
     fit_into(&scene, &tmp.join("with_truth_1_thread"), 1, &library);
     fit_into(&copy, &tmp.join("without_truth_2_threads"), 2, &library);
     let a = contents(&tmp.join("with_truth_1_thread"));
@@ -202,7 +188,7 @@ fn a_scene_without_lights_is_fitted_under_generated_ceiling_lights() {
     let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/room");
     let tmp = std::env::temp_dir().join(format!("psc-fit-no-lights-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
-    copy_without_truth(&example, &tmp);
+    copy_tree(&example, &tmp, &["truth"]);
     let manifest = tmp.join("scene.json");
     let mut m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
     assert!(m.as_object_mut().unwrap().remove("lights").is_some(), "the example names its lights");

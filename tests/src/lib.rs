@@ -3,4 +3,5 @@
 #![forbid(unsafe_code)]
 
 pub mod dev_scenes;
+pub mod folders;
 pub mod not_run;

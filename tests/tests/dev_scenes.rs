@@ -3,13 +3,12 @@
 //! `truth/` folder as without it (nothing read it). Needs `../shared/scenes`: says so loudly
 //! when absent, and fails then under `CI`.
 
-use std::path::Path;
-
 use psc_base::progress::NoProgress;
 use psc_render::LightsSource;
 use psc_render::{RenderOptions, Renderer};
 use psc_runtime::view::{open_view, GeometryChoice, MaterialsChoice, OpenedView, ViewRequest};
 use psc_tests::dev_scenes::{all_dev_scenes, dev_scene};
+use psc_tests::folders::copy_tree;
 
 fn render_small(v: &OpenedView) -> Vec<[f32; 3]> {
     let renderer = Renderer::new(&v.scene, v.materials.clone(), &v.radiances).unwrap();
@@ -37,29 +36,12 @@ fn truth_choices_open_every_dev_scene() {
     }
 }
 
-fn copy_tree(from: &Path, to: &Path, skip: &str) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let name = entry.file_name();
-        if name == skip {
-            continue;
-        }
-        let (src, dst) = (entry.path(), to.join(&name));
-        if src.is_dir() {
-            copy_tree(&src, &dst, skip);
-        } else {
-            std::fs::copy(&src, &dst).unwrap();
-        }
-    }
-}
-
 #[test]
 fn default_choices_render_the_same_without_truth() {
     let Some(dir) = dev_scene("dev_1", "default_choices_render_the_same_without_truth") else { return };
     let copy = std::env::temp_dir().join(format!("psc-dev-scene-no-truth-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&copy);
-    copy_tree(&dir, &copy, "truth");
+    copy_tree(&dir, &copy, &["truth"]);
     assert!(!copy.join("truth").exists());
     let with =
         open_view(&ViewRequest { scene: dir, size: Some((24, 18)), ..Default::default() }, None, &NoProgress).unwrap();
