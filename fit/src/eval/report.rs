@@ -129,10 +129,14 @@ impl Evaluation {
             let scale = (ratios.iter().map(|r| r.max(1e-12).ln()).sum::<f64>() / ratios.len() as f64).exp();
             let rel: Vec<String> = ratios.iter().map(|r| format!("{:.3}", r / scale)).collect();
             let worst = ratios.iter().map(|r| (r / scale - 1.0).abs()).fold(0.0, f64::max);
+            // The ratio between two lights, the stricter reading: the most and least scaled.
+            let (lo, hi) = ratios.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &r| (lo.min(r), hi.max(r)));
             s.push_str(&format!(
-                "lights: fitted/true luminance per light over their geometric mean {} (worst {:.1}% off; global scale {scale:.3})\n",
+                "lights: fitted/true luminance per light over their geometric mean {} (worst {:.1}% off; between two \
+                 lights {:.1}% off; global scale {scale:.3})\n",
                 rel.join(", "),
-                worst * 100.0
+                worst * 100.0,
+                (hi / lo.max(1e-12) - 1.0) * 100.0
             ));
         }
         let judged: Vec<&GraphChoice> = self.graph_choice.iter().filter(|c| c.matches.is_some()).collect();
