@@ -170,8 +170,8 @@ impl ViewObservation {
         });
         let raster = WorkingRaster::for_photo(photo.width, photo.height, max_pixels);
         let camera = raster.camera(&view.camera);
-        let labels = labels.map(|l| raster.labels(&l, photo.width));
-        let photo = raster.photo(&photo);
+        let labels = labels.map(|l| raster.labels(l, photo.width));
+        let photo = raster.photo(photo);
         let geo = GeoBuffer::trace(geometry, &camera);
         Ok(ViewObservation { name: view.name.clone(), camera, photo, labels, geo, raster })
     }

@@ -243,7 +243,7 @@ fn render_views(
         image_io::write_rgb(&path, w, h, &out.image)?;
         written.push(path);
         // Photo | render, for looking at them together.
-        let photo = raster.photo(&Photo::load(&view.image)?);
+        let photo = raster.photo(Photo::load(&view.image)?);
         let mut pair = vec![[0.0f32; 3]; 2 * w * h];
         for y in 0..h {
             for x in 0..w {
