@@ -132,7 +132,7 @@ mod tests {
         assert!((small.encoded[0][0] - image_io::linear_to_srgb(mean)).abs() < 1e-7);
         assert!(small.clipped(0) && !small.clipped(1) && !small.clipped(3));
         // Block (1, 1) holds pixels 12, 13, 17, 18.
-        let labels: Vec<u32> = (0..w * h as usize).map(|i| if i == 13 || i == 18 { 7 } else { 3 }).collect();
+        let labels: Vec<u32> = (0..w * h).map(|i| if i == 13 || i == 18 { 7 } else { 3 }).collect();
         let tied = r.labels(labels.clone(), w);
         assert_eq!(tied[3], 3, "a tie goes to the smaller label");
         let mut more = labels.clone();
