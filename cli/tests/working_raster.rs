@@ -119,6 +119,10 @@ fn a_fit_at_a_working_raster_renders_and_reports_at_it() {
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(html.contains("|photo − render| ×"), "no difference image in the report");
     assert!(!html.contains(&format!("the render {w}×{h}")), "the report compared images of different sizes");
+    // Every part fitted in the view has its crop of the render beside the photo's.
+    let (photo_crops, render_crops) =
+        (html.matches("alt=\"photo crop\"").count(), html.matches("alt=\"render crop\"").count());
+    assert!(photo_crops >= 7 && render_crops == photo_crops, "{photo_crops} photo crops, {render_crops} render crops");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

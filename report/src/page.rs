@@ -211,6 +211,13 @@ fn crops(fit: &FitFolder, part: &Part, photos: &BTreeMap<String, Result<Rgb8, St
         None => s.push_str(&missing("Crop", "no photo")),
     }
     if let Some(Ok(r)) = fit.render_of(view_name).map(|p| Rgb8::read(&p)) {
+        // A render at the fit's working raster is looked at on the photo's raster.
+        let r = match fit.working_raster(view_name) {
+            Some((origin, factor, w, h)) if (w, h) == (r.width, r.height) => {
+                Cow::Owned(r.blocks_at(origin, factor, labels.width, labels.height))
+            }
+            _ => Cow::Borrowed(&r),
+        };
         if (r.width, r.height) == (labels.width, labels.height) {
             let c = part_crop(&r, labels, &values, bounds).fit_within(CROP_SIDE);
             s.push_str(&figure(&img(&c.data_uri(), "render crop", "crop"), "re-render"));

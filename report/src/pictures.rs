@@ -42,6 +42,23 @@ impl Rgb8 {
         Rgb8 { width, height, data: small.iter().flat_map(|p| p.map(linear_to_srgb8)).collect() }
     }
 
+    /// The inverse of [`Rgb8::block_average`] for looking at a downsampled image beside its
+    /// original: the `width × height` image in which every pixel of this one covers its
+    /// `factor × factor` block at `origin` (nearest); pixels outside the blocks are black.
+    pub fn blocks_at(&self, origin: [usize; 2], factor: usize, width: usize, height: usize) -> Rgb8 {
+        let mut data = vec![0u8; 3 * width * height];
+        for y in 0..height {
+            for x in 0..width {
+                let (Some(bx), Some(by)) = (x.checked_sub(origin[0]), y.checked_sub(origin[1])) else { continue };
+                let (sx, sy) = (bx / factor, by / factor);
+                if sx < self.width && sy < self.height {
+                    data[3 * (y * width + x)..][..3].copy_from_slice(&self.pixel(sx, sy));
+                }
+            }
+        }
+        Rgb8 { width, height, data }
+    }
+
     /// PNG bytes of the image.
     pub fn png(&self) -> Vec<u8> {
         use image::ImageEncoder;
@@ -154,6 +171,19 @@ mod tests {
         let f = &f;
         let data = (0..height).flat_map(|y| (0..width).flat_map(move |x| f(x, y))).collect::<Vec<_>>();
         Rgb8 { width, height, data }
+    }
+
+    #[test]
+    fn blocks_at_undoes_the_block_average_of_a_blocky_image() {
+        let small = image(3, 2, |x, y| [x as u8 * 50, y as u8 * 100, 9]);
+        let big = small.blocks_at([1, 0], 2, 8, 5);
+        assert_eq!(big.pixel(0, 0), [0, 0, 0], "left of the blocks");
+        assert_eq!(
+            (big.pixel(1, 0), big.pixel(2, 1), big.pixel(6, 3)),
+            (small.pixel(0, 0), small.pixel(0, 0), small.pixel(2, 1))
+        );
+        assert_eq!((big.pixel(7, 0), big.pixel(1, 4)), ([0, 0, 0], [0, 0, 0]), "right of and below the blocks");
+        assert_eq!(big.block_average([1, 0], 2, 3, 2), small);
     }
 
     #[test]
