@@ -42,6 +42,7 @@ b.setAttribute('data-external-resources',performance.getEntriesByType('resource'
 pub fn render(fit: &FitFolder) -> String {
     let title = format!("photoscene fit: {}", fit.dir.file_name().and_then(|n| n.to_str()).unwrap_or("output"));
     let photos = read_photos(fit);
+    let renders = renders_on_photo_rasters(fit);
     let mut body = String::new();
     let _ = write!(body, "<h1>{}</h1>", esc(&title));
     body.push_str(&summary(fit));
@@ -49,7 +50,7 @@ pub fn render(fit: &FitFolder) -> String {
     body.push_str(&views(fit, &photos));
     body.push_str("<h2 id=\"parts\">Parts</h2>");
     for part in &fit.parts {
-        body.push_str(&part_section(fit, part, &photos));
+        body.push_str(&part_section(fit, part, &photos, &renders));
     }
     body.push_str(&lights(fit));
     body.push_str(&evaluation(fit));
@@ -69,6 +70,25 @@ fn read_photos(fit: &FitFolder) -> BTreeMap<String, Result<Rgb8, String>> {
         Ok(scene) => scene.views.iter().map(|v| (v.name.clone(), Rgb8::read(&v.image))).collect(),
         Err(_) => BTreeMap::new(),
     }
+}
+
+/// Each view's re-render on its photo's raster (for crops beside the photo's): as written, or,
+/// for a view `psc fit` fitted at a working raster, each pixel over its block. Read once here,
+/// not once per part.
+fn renders_on_photo_rasters(fit: &FitFolder) -> BTreeMap<String, Rgb8> {
+    let Ok(scene) = &fit.scene else { return BTreeMap::new() };
+    let mut out = BTreeMap::new();
+    for view in &scene.views {
+        let Some(Ok(r)) = fit.render_of(&view.name).map(|p| Rgb8::read(&p)) else { continue };
+        let r = match fit.working_raster(&view.name) {
+            Some((origin, factor, w, h)) if (w, h) == (r.width, r.height) => {
+                r.blocks_at(origin, factor, view.width, view.height)
+            }
+            _ => r,
+        };
+        out.insert(view.name.clone(), r);
+    }
+    out
 }
 
 /// The names of the views: the scene's, else those the fit rendered.
@@ -183,7 +203,12 @@ fn photo_at_render_raster<'a>(fit: &FitFolder, view: &str, photo: &'a Rgb8, rend
 }
 
 /// The crop of the part in its view, from the photo and (when there) the render.
-fn crops(fit: &FitFolder, part: &Part, photos: &BTreeMap<String, Result<Rgb8, String>>) -> String {
+fn crops(
+    fit: &FitFolder,
+    part: &Part,
+    photos: &BTreeMap<String, Result<Rgb8, String>>,
+    renders: &BTreeMap<String, Rgb8>,
+) -> String {
     let Some(view_name) = part.view() else {
         return missing("Crop", "the part was not fitted in any view");
     };
@@ -210,23 +235,21 @@ fn crops(fit: &FitFolder, part: &Part, photos: &BTreeMap<String, Result<Rgb8, St
         Some(Err(e)) => s.push_str(&missing("Crop", e)),
         None => s.push_str(&missing("Crop", "no photo")),
     }
-    if let Some(Ok(r)) = fit.render_of(view_name).map(|p| Rgb8::read(&p)) {
-        // A render at the fit's working raster is looked at on the photo's raster.
-        let r = match fit.working_raster(view_name) {
-            Some((origin, factor, w, h)) if (w, h) == (r.width, r.height) => {
-                Cow::Owned(r.blocks_at(origin, factor, labels.width, labels.height))
-            }
-            _ => Cow::Borrowed(&r),
-        };
+    if let Some(r) = renders.get(view_name) {
         if (r.width, r.height) == (labels.width, labels.height) {
-            let c = part_crop(&r, labels, &values, bounds).fit_within(CROP_SIDE);
+            let c = part_crop(r, labels, &values, bounds).fit_within(CROP_SIDE);
             s.push_str(&figure(&img(&c.data_uri(), "render crop", "crop"), "re-render"));
         }
     }
     s
 }
 
-fn part_section(fit: &FitFolder, part: &Part, photos: &BTreeMap<String, Result<Rgb8, String>>) -> String {
+fn part_section(
+    fit: &FitFolder,
+    part: &Part,
+    photos: &BTreeMap<String, Result<Rgb8, String>>,
+    renders: &BTreeMap<String, Rgb8>,
+) -> String {
     let mut s = format!("<section class=\"part\" id=\"{}\"><h3>{}</h3>", anchor("part", &part.name), esc(&part.name));
     let _ = write!(
         s,
@@ -236,7 +259,7 @@ fn part_section(fit: &FitFolder, part: &Part, photos: &BTreeMap<String, Result<R
         esc(part.view().unwrap_or("none"))
     );
     s.push_str("<div class=\"cols\"><div>");
-    s.push_str(&crops(fit, part, photos));
+    s.push_str(&crops(fit, part, photos, renders));
     s.push_str("</div><div>");
     s.push_str(&swatches(part));
     s.push_str("</div></div><div class=\"cols\"><div><h4>Graph selection</h4>");
