@@ -40,8 +40,9 @@ impl WorkingRaster {
         WorkingRaster { factor, origin: [(width - w * factor) / 2, (height - h * factor) / 2], width: w, height: h }
     }
 
+    /// Whether this is the photo's own raster (a factor of 1 leaves no remainder to crop).
     pub fn is_identity(&self) -> bool {
-        self.factor == 1 && self.origin == [0, 0]
+        self.factor == 1
     }
 
     /// The photo's camera (at the photo's size) seen through this raster.
