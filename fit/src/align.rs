@@ -59,6 +59,18 @@ pub struct AlignedPart {
     pub dropped: Dropped,
 }
 
+impl AlignedPart {
+    /// Each usable photo pixel with the model pixel its warped position lands on (always inside
+    /// the raster and on this part: [`align_view`] keeps only such pixels), both as indices into
+    /// a raster `width` pixels wide.
+    pub fn correspondences(&self, width: usize, height: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.usable.iter().filter_map(move |&i| {
+            let (x, y) = ((i as usize % width) as f32 + 0.5, (i as usize / width) as f32 + 0.5);
+            model_pixel(&self.warp, x, y, width, height).map(|j| (i as usize, j))
+        })
+    }
+}
+
 /// Relative depth jump between 4-neighbours that marks a depth edge.
 const DEPTH_EDGE: f32 = 0.05;
 

@@ -329,7 +329,7 @@ fn run(
         if radiances.is_none() {
             let seed = options.seed ^ 0x5eed_0001 ^ round as u64;
             let label = format!("round {}", round + 1);
-            if !solve_and_apply(&renderer, &views, seed, &label, &mut result, progress)? {
+            if !solve_and_apply(&renderer, &inputs, seed, &label, &mut result, progress)? {
                 break;
             }
             result.light_source = format!(
@@ -367,7 +367,7 @@ fn run(
     if radiances.is_none() && !result.light_rounds.is_empty() && !calibrated {
         renderer.set_materials(result.bindings(library)?)?;
         let seed = options.seed ^ 0x5eed_0003;
-        if solve_and_apply(&renderer, &views, seed, "final calibration", &mut result, progress)? {
+        if solve_and_apply(&renderer, &inputs, seed, "final calibration", &mut result, progress)? {
             result.light_source.push_str(", then a final solve of lights and part colours");
         }
         lap("final calibration", &mut result.timings);
@@ -380,14 +380,14 @@ fn run(
 /// light round. False (and nothing applied) when the solve found no light.
 fn solve_and_apply(
     renderer: &Renderer,
-    views: &[ViewObservation],
+    inputs: &RoundInputs,
     seed: u64,
     label: &str,
     result: &mut FitResult,
     progress: &dyn Progress,
 ) -> Result<bool, FitError> {
     progress.stage("solve lights", 1);
-    let solve = refit::solve_lights(renderer, views, seed)?;
+    let solve = refit::solve_lights(renderer, inputs.views, inputs.aligned, seed)?;
     progress.advance(1);
     if solve.radiance.iter().all(|r| r.iter().all(|&c| c <= 0.0)) {
         progress.note(&format!("{label}: the light solve found no light; keeping the previous radiances"));
@@ -409,7 +409,7 @@ fn solve_and_apply(
         solve.outliers * 100.0,
         lights.join(", "),
         change * 100.0,
-        exposure_note(views, &solve.exposure)
+        exposure_note(inputs.views, &solve.exposure)
     ));
     result.radiance = solve.radiance.clone();
     result.exposure = solve.exposure.clone();

@@ -33,10 +33,15 @@ use crate::targets::part_view;
 /// per view, under the renderer's current materials (see
 /// [`light_solve::solve_with_part_scales`]), from two independent estimates of the unit renders
 /// so that their Monte Carlo noise does not bias the radiances.
-pub fn solve_lights(renderer: &Renderer, views: &[ViewObservation], seed: u64) -> Result<LightSolve, FitError> {
+pub fn solve_lights(
+    renderer: &Renderer,
+    views: &[ViewObservation],
+    aligned: &[Vec<AlignedPart>],
+    seed: u64,
+) -> Result<LightSolve, FitError> {
     let renders = lighting::unit_renders(renderer, views, seed)?;
     let independent = lighting::unit_renders(renderer, views, psc_base::mix64(seed ^ 0x1d_e9e4_de47))?;
-    light_solve::solve_with_part_scales(views, &renders, &independent)
+    light_solve::solve_with_part_scales(views, aligned, &renders, &independent)
 }
 
 /// What a part's re-fit reads that stays the same through every round.

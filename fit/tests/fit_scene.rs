@@ -4,6 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
+use psc_fit::align::align_view;
 use psc_fit::layer::Sampling;
 use psc_fit::observe::ViewObservation;
 use psc_fit::output::{self, OutputOptions};
@@ -297,7 +298,9 @@ fn the_fit_ends_with_part_colours_the_path_tracer_agrees_with() {
         .iter()
         .map(|v| ViewObservation::new(v, &scene.mesh.part_names, renderer.geometry(), 0).unwrap())
         .collect();
-    let check = refit::solve_lights(&renderer, &views, 99).unwrap();
+    let aligned: Vec<_> =
+        views.iter().enumerate().map(|(i, o)| align_view(o, i, scene.mesh.part_names.len())).collect();
+    let check = refit::solve_lights(&renderer, &views, &aligned, 99).unwrap();
     let observed: Vec<usize> =
         (0..result.parts.len()).filter(|&i| result.parts[i].status != PartStatus::Unobserved).collect();
     // Mean over observed parts of the largest |ln factor| over the channels.
