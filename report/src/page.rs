@@ -41,16 +41,15 @@ b.setAttribute('data-external-resources',performance.getEntriesByType('resource'
 /// The whole HTML text of the report.
 pub fn render(fit: &FitFolder) -> String {
     let title = format!("photoscene fit: {}", fit.dir.file_name().and_then(|n| n.to_str()).unwrap_or("output"));
-    let photos = read_photos(fit);
-    let renders = renders_on_photo_rasters(fit);
+    let images = ViewImages::read(fit);
     let mut body = String::new();
     let _ = write!(body, "<h1>{}</h1>", esc(&title));
     body.push_str(&summary(fit));
     body.push_str(&contents(fit));
-    body.push_str(&views(fit, &photos));
+    body.push_str(&views(fit, &images));
     body.push_str("<h2 id=\"parts\">Parts</h2>");
     for part in &fit.parts {
-        body.push_str(&part_section(fit, part, &photos, &renders));
+        body.push_str(&part_section(fit, part, &images));
     }
     body.push_str(&lights(fit));
     body.push_str(&evaluation(fit));
@@ -64,31 +63,49 @@ pub fn render(fit: &FitFolder) -> String {
     )
 }
 
-/// Each view's photo (sRGB as stored), or why it is not available.
-fn read_photos(fit: &FitFolder) -> BTreeMap<String, Result<Rgb8, String>> {
-    match &fit.scene {
-        Ok(scene) => scene.views.iter().map(|v| (v.name.clone(), Rgb8::read(&v.image))).collect(),
-        Err(_) => BTreeMap::new(),
-    }
+/// Every view's images, each read from disk once for the whole page.
+struct ViewImages {
+    /// The photo (sRGB as stored), or why it is not available.
+    photos: BTreeMap<String, Result<Rgb8, String>>,
+    /// Per view, in the page's order ([`view_names`]), the fit's re-render as written (at the
+    /// working raster where the fit used one), or why it is not available.
+    renders: Vec<(String, Result<Rgb8, String>)>,
+    /// The re-render on its photo's raster (for crops beside the photo's): as written, or, for
+    /// a view fitted at a working raster, each pixel over its block.
+    renders_on_photo: BTreeMap<String, Rgb8>,
 }
 
-/// Each view's re-render on its photo's raster (for crops beside the photo's): as written, or,
-/// for a view `psc fit` fitted at a working raster, each pixel over its block. Read once here,
-/// not once per part.
-fn renders_on_photo_rasters(fit: &FitFolder) -> BTreeMap<String, Rgb8> {
-    let Ok(scene) = &fit.scene else { return BTreeMap::new() };
-    let mut out = BTreeMap::new();
-    for view in &scene.views {
-        let Some(Ok(r)) = fit.render_of(&view.name).map(|p| Rgb8::read(&p)) else { continue };
-        let r = match fit.working_raster(&view.name) {
-            Some((origin, factor, w, h)) if (w, h) == (r.width, r.height) => {
-                r.blocks_at(origin, factor, view.width, view.height)
-            }
-            _ => r,
+impl ViewImages {
+    fn read(fit: &FitFolder) -> ViewImages {
+        let photos = match &fit.scene {
+            Ok(scene) => scene.views.iter().map(|v| (v.name.clone(), Rgb8::read(&v.image))).collect(),
+            Err(_) => BTreeMap::new(),
         };
-        out.insert(view.name.clone(), r);
+        let renders: Vec<(String, Result<Rgb8, String>)> = view_names(fit)
+            .into_iter()
+            .map(|name| {
+                let render = match fit.render_of(&name) {
+                    Some(path) => Rgb8::read(&path),
+                    None => Err("the fit wrote no renders/ for this view (--render-spp 0?)".into()),
+                };
+                (name, render)
+            })
+            .collect();
+        let mut renders_on_photo = BTreeMap::new();
+        if let Ok(scene) = &fit.scene {
+            for view in &scene.views {
+                let Some((_, Ok(r))) = renders.iter().find(|(name, _)| name == &view.name) else { continue };
+                let r = match fit.working_raster(&view.name) {
+                    Some((origin, factor, w, h)) if (w, h) == (r.width, r.height) => {
+                        r.blocks_at(origin, factor, view.width, view.height)
+                    }
+                    _ => r.clone(),
+                };
+                renders_on_photo.insert(view.name.clone(), r);
+            }
+        }
+        ViewImages { photos, renders, renders_on_photo }
     }
-    out
 }
 
 /// The names of the views: the scene's, else those the fit rendered.
@@ -142,35 +159,30 @@ fn contents(fit: &FitFolder) -> String {
     s
 }
 
-fn views(fit: &FitFolder, photos: &BTreeMap<String, Result<Rgb8, String>>) -> String {
+fn views(fit: &FitFolder, images: &ViewImages) -> String {
     let mut s = String::from("<h2 id=\"views\">Views</h2>");
     let _ = write!(
         s,
         "<p>Each input view: the photo, the fit's re-render by the path tracer, and |photo − render| per sRGB \
          channel ×{DIFFERENCE_GAIN} (black: equal).</p>"
     );
-    let names = view_names(fit);
-    if names.is_empty() {
+    if images.renders.is_empty() {
         s.push_str(&missing("Views", "the scene is not available and the fit rendered none"));
     }
-    for name in names {
-        let _ = write!(s, "<h3 id=\"{}\">{}</h3><div>", anchor("view", &name), esc(&name));
-        let photo = photos.get(&name);
+    for (name, render) in &images.renders {
+        let _ = write!(s, "<h3 id=\"{}\">{}</h3><div>", anchor("view", name), esc(name));
+        let photo = images.photos.get(name);
         match photo {
             Some(Ok(p)) => s.push_str(&figure(&img(&p.fit_within(VIEW_SIDE).data_uri(), "photo", "view"), "photo")),
             Some(Err(e)) => s.push_str(&missing("Photo", e)),
             None => s.push_str(&missing("Photo", "the scene is not available")),
         }
-        let render = match fit.render_of(&name) {
-            Some(path) => Rgb8::read(&path),
-            None => Err("the fit wrote no renders/ for this view (--render-spp 0?)".into()),
-        };
-        match &render {
+        match render {
             Ok(r) => s.push_str(&figure(&img(&r.fit_within(VIEW_SIDE).data_uri(), "re-render", "view"), "re-render")),
             Err(e) => s.push_str(&missing("Re-render", e)),
         }
-        match (photo, &render) {
-            (Some(Ok(p)), Ok(r)) => match difference(&photo_at_render_raster(fit, &name, p, r), r) {
+        match (photo, render) {
+            (Some(Ok(p)), Ok(r)) => match difference(&photo_at_render_raster(fit, name, p, r), r) {
                 Some((d, mean)) => s.push_str(&figure(
                     &img(&d.fit_within(VIEW_SIDE).data_uri(), "difference", "view"),
                     &format!("|photo − render| ×{DIFFERENCE_GAIN}; mean {} of full scale", num(mean)),
@@ -203,12 +215,7 @@ fn photo_at_render_raster<'a>(fit: &FitFolder, view: &str, photo: &'a Rgb8, rend
 }
 
 /// The crop of the part in its view, from the photo and (when there) the render.
-fn crops(
-    fit: &FitFolder,
-    part: &Part,
-    photos: &BTreeMap<String, Result<Rgb8, String>>,
-    renders: &BTreeMap<String, Rgb8>,
-) -> String {
+fn crops(fit: &FitFolder, part: &Part, images: &ViewImages) -> String {
     let Some(view_name) = part.view() else {
         return missing("Crop", "the part was not fitted in any view");
     };
@@ -226,7 +233,7 @@ fn crops(
         return missing("Crop", &format!("no pixel of view '{view_name}' is labelled '{}'", part.name));
     };
     let mut s = String::new();
-    match photos.get(view_name) {
+    match images.photos.get(view_name) {
         Some(Ok(p)) if (p.width, p.height) == (labels.width, labels.height) => {
             let c = part_crop(p, labels, &values, bounds).fit_within(CROP_SIDE);
             s.push_str(&figure(&img(&c.data_uri(), "photo crop", "crop"), &format!("photo, {}", esc(view_name))));
@@ -235,7 +242,7 @@ fn crops(
         Some(Err(e)) => s.push_str(&missing("Crop", e)),
         None => s.push_str(&missing("Crop", "no photo")),
     }
-    if let Some(r) = renders.get(view_name) {
+    if let Some(r) = images.renders_on_photo.get(view_name) {
         if (r.width, r.height) == (labels.width, labels.height) {
             let c = part_crop(r, labels, &values, bounds).fit_within(CROP_SIDE);
             s.push_str(&figure(&img(&c.data_uri(), "render crop", "crop"), "re-render"));
@@ -244,12 +251,7 @@ fn crops(
     s
 }
 
-fn part_section(
-    fit: &FitFolder,
-    part: &Part,
-    photos: &BTreeMap<String, Result<Rgb8, String>>,
-    renders: &BTreeMap<String, Rgb8>,
-) -> String {
+fn part_section(fit: &FitFolder, part: &Part, images: &ViewImages) -> String {
     let mut s = format!("<section class=\"part\" id=\"{}\"><h3>{}</h3>", anchor("part", &part.name), esc(&part.name));
     let _ = write!(
         s,
@@ -259,7 +261,7 @@ fn part_section(
         esc(part.view().unwrap_or("none"))
     );
     s.push_str("<div class=\"cols\"><div>");
-    s.push_str(&crops(fit, part, photos, renders));
+    s.push_str(&crops(fit, part, images));
     s.push_str("</div><div>");
     s.push_str(&swatches(part));
     s.push_str("</div></div><div class=\"cols\"><div><h4>Graph selection</h4>");
