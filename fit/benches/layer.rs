@@ -65,7 +65,6 @@ fn view(rng: &mut SplitMix64) -> PartView {
         factor: 1,
         pixels,
         weight: vec![1.0; w * h],
-        pattern_weight: vec![1.0; w * h],
         target: vec![[0.5; 3]; w * h],
         target_linear: vec![[0.2; 3]; w * h],
         exposure: [1.0; 3],

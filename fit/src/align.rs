@@ -5,9 +5,10 @@
 //! coarse model traced through the view's camera. The model is misaligned, so per part a
 //! scale-and-translate warp maps model raster positions onto the photo: initialised from the
 //! two masks' bounding boxes and refined by pattern search to maximise their IoU (PhotoScene's
-//! supplement, "Alignment and Warping"). A photo pixel counts when it is labelled with the part,
-//! not clipped, not on the boundary of the aligned mask (eroded by one pixel), and its warped
-//! model position lands on the same part away from depth edges.
+//! supplement, "Alignment and Warping"). A photo pixel is usable when it is labelled with the
+//! part, not clipped, not on the boundary of the aligned mask (eroded by one pixel), and its
+//! warped model position lands on the same part away from depth edges; the clipped pixels that
+//! pass the other tests are kept apart (see [`AlignedPart::clipped`]).
 
 use crate::observe::ViewObservation;
 
@@ -31,6 +32,8 @@ impl Warp {
 /// Why photo pixels of a part were left out, for the report.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Dropped {
+    /// Not usable, but read as clipped by the losses and the light solve
+    /// ([`AlignedPart::clipped`]).
     pub clipped: usize,
     pub boundary: usize,
     /// The warped model position is on another part, an emitter or nothing.
@@ -52,21 +55,25 @@ pub struct AlignedPart {
     pub model_pixels: usize,
     /// Photo pixel indices that count, in raster order.
     pub usable: Vec<u32>,
-    /// Pixels that pass every test but are clipped in the photo: they do not count for colour
-    /// and statistics (their value is unknown), but they are part of the pattern the feature
-    /// loss compares (a render clips the same way), which holes in the mask would carve up.
+    /// Pixels that pass every test but are clipped in the photo: their true value is unknown,
+    /// only at least the recorded one. They do not count towards a part's usable pixels (the
+    /// 500 a fit needs), but the losses compare them with a render clipped the same way
+    /// ([`crate::layer::PartView::weight`]) and the light solve takes them as lower bounds:
+    /// left out, a partly clipped part would keep only its darker pixels and be fitted too
+    /// dark, and holes in the mask would carve up the pattern.
     pub clipped: Vec<u32>,
     pub dropped: Dropped,
 }
 
 impl AlignedPart {
-    /// Each usable photo pixel with the model pixel its warped position lands on (always inside
-    /// the raster and on this part: [`align_view`] keeps only such pixels), both as indices into
-    /// a raster `width` pixels wide.
-    pub fn correspondences(&self, width: usize, height: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
-        self.usable.iter().filter_map(move |&i| {
+    /// Each usable photo pixel, then each clipped one, with the model pixel its warped position
+    /// lands on (always inside the raster and on this part: [`align_view`] keeps only such
+    /// pixels), both as indices into a raster `width` pixels wide, and whether it is clipped.
+    pub fn correspondences(&self, width: usize, height: usize) -> impl Iterator<Item = (usize, usize, bool)> + '_ {
+        let usable = self.usable.iter().map(|&i| (i, false));
+        usable.chain(self.clipped.iter().map(|&i| (i, true))).filter_map(move |(i, clipped)| {
             let (x, y) = ((i as usize % width) as f32 + 0.5, (i as usize / width) as f32 + 0.5);
-            model_pixel(&self.warp, x, y, width, height).map(|j| (i as usize, j))
+            model_pixel(&self.warp, x, y, width, height).map(|j| (i as usize, j, clipped))
         })
     }
 }

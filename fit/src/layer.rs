@@ -58,12 +58,12 @@ pub struct PartView {
     pub origin: [usize; 2],
     pub factor: usize,
     pub pixels: Vec<FitPixel>,
-    /// Per crop pixel, how much it counts for colour and statistics (0 outside the usable
-    /// mask and where the photo is clipped).
+    /// Per crop pixel, how much it counts (0 outside the usable mask). Pixels clipped in the
+    /// photo count like the others, for the pattern and for the colour statistics alike: the
+    /// layer clips its render the same way (`clamp(e·I, 0, 1)`), so a candidate is compared
+    /// with the photo as both would be recorded. Left out, they would leave a partly clipped
+    /// part's darker pixels only, and its fitted albedo too dark (a selection on the value).
     pub weight: Vec<f32>,
-    /// Per crop pixel, how much it counts for the pattern (the feature loss): as `weight`, but
-    /// clipped photo pixels count (the render clips the same way).
-    pub pattern_weight: Vec<f32>,
     /// The photo, sRGB-encoded, per crop pixel (0 where the weight is 0).
     pub target: Vec<[f32; 3]>,
     /// The photo's linear values, per crop pixel.
@@ -336,7 +336,8 @@ impl PartView {
     }
 
     /// The albedo scale that colour-matches the last render of `state` (in `ws`) to the photo:
-    /// per channel, the median of the photo over the median of the render (linear values).
+    /// per channel, the median of the photo over the median of the render (linear values; where
+    /// the photo's median is clipped, the least scale that renders it clipped).
     pub fn matched_albedo_scale(&self, state: &MaterialState, ws: &Workspace) -> [f32; 3] {
         let mut photo: [Vec<f32>; 3] = Default::default();
         let mut render: [Vec<f32>; 3] = Default::default();

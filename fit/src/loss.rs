@@ -101,12 +101,12 @@ impl PartLoss {
         config: &FeatureConfig,
         scratch: &mut Scratch,
     ) -> Result<PartLoss, FitError> {
-        let region = Region { width: view.width, height: view.height, weight: view.pattern_weight.clone() };
+        let region = Region { width: view.width, height: view.height, weight: view.weight.clone() };
         let features = FeatureLoss::new(config, &region).map_err(feature_error)?;
         let target_features = features.describe(&view.target, scratch).map_err(feature_error)?;
         let target = Moments::of(&view.target, &view.weight);
         let target_std_floor = std::array::from_fn(|c| (target.std[c].powi(2) - view.noise[c].powi(2)).max(0.0).sqrt());
-        let contrast = ContrastLoss::new(view.width, view.height, &view.pattern_weight, &view.target, view.noise[3]);
+        let contrast = ContrastLoss::new(view.width, view.height, &view.weight, &view.target, view.noise[3]);
         Ok(PartLoss {
             weights,
             total_weight: view.total_weight().max(1e-6),

@@ -18,6 +18,9 @@ use crate::working::WorkingRaster;
 /// Marks "no part" in per-pixel part arrays.
 pub const NO_PART: u32 = u32::MAX;
 
+/// An encoded photo value at or above this, in any channel, is clipped.
+pub const CLIP_LEVEL: f32 = 0.99;
+
 /// A photo: values as encoded in the file (sRGB, in [0, 1]) and linear radiance.
 #[derive(Clone, Debug)]
 pub struct Photo {
@@ -50,7 +53,7 @@ impl Photo {
                 bad / img.width
             )));
         }
-        let clip = encoded.iter().map(|c: &[f32; 3]| c.iter().any(|&v| v >= 0.99)).collect();
+        let clip = encoded.iter().map(|c: &[f32; 3]| c.iter().any(|&v| v >= CLIP_LEVEL)).collect();
         Ok(Photo { width: img.width, height: img.height, encoded, linear, clip })
     }
 

@@ -39,7 +39,7 @@ pub fn part_view(
         let (x, y) = (i as usize % w, i as usize / w);
         (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
     }
-    // Clipped pixels inside the window join the pattern (not the statistics).
+    // Clipped pixels inside the window count like the others (see [`PartView::weight`]).
     let inside = |i: &u32| {
         let (x, y) = (*i as usize % w, *i as usize / w);
         (x0..=x1).contains(&x) && (y0..=y1).contains(&y)
@@ -67,7 +67,7 @@ pub fn part_view(
         centre[c][1] += y as f64 + 0.5;
     }
     let mut weight = vec![0.0f32; cw * ch];
-    let mut pattern_weight = vec![0.0f32; cw * ch];
+    let mut unclipped_weight = vec![0.0f32; cw * ch];
     let mut target = vec![[0.0f32; 3]; cw * ch];
     let mut target_linear = vec![[0.0f32; 3]; cw * ch];
     let mut pixels = Vec::new();
@@ -85,8 +85,8 @@ pub fn part_view(
         }
         let Some(light) = grid.at(gx, gy, aligned.part) else { continue };
         let linear = sum[c].map(|s| (s / n) as f32);
-        weight[c] = count[c] as f32 / (factor * factor) as f32;
-        pattern_weight[c] = n as f32 / (factor * factor) as f32;
+        weight[c] = n as f32 / (factor * factor) as f32;
+        unclipped_weight[c] = count[c] as f32 / (factor * factor) as f32;
         target_linear[c] = linear;
         target[c] = linear.map(linear_to_srgb);
         pixels.push(FitPixel {
@@ -102,7 +102,7 @@ pub fn part_view(
     if pixels.is_empty() {
         return None;
     }
-    let noise = crop_noise(&target, &weight, &pattern_weight, cw, ch);
+    let noise = crop_noise(&target, &unclipped_weight, &weight, cw, ch);
     Some(PartView {
         width: cw,
         height: ch,
@@ -110,7 +110,6 @@ pub fn part_view(
         factor,
         pixels,
         weight,
-        pattern_weight,
         target,
         target_linear,
         exposure,
@@ -119,7 +118,8 @@ pub fn part_view(
 }
 
 /// The target's noise, estimated on the crop itself (Immerkær's estimator per channel over the
-/// usable pixels, and on the luma over the pattern's pixels). The estimate counts a part's
+/// unclipped pixels, whose channels the clip has not flattened, and on the luma over every
+/// counted pixel, as the pattern's losses see it). The estimate counts a part's
 /// finest texture as noise too (dev_1's gravel wall reads 0.032 where the photo's noise is
 /// about 0.013), so the losses forgive a candidate for lacking some of that texture. A
 /// photo-wide estimate (the lower quartile of Immerkær estimates over 32×32 blocks of the
@@ -127,10 +127,10 @@ pub fn part_view(
 /// texture than the photos have: contrast W1 over the pixel median's 0.28 / 0.63 / 0.30
 /// (input, novel, relit) against 0.21 / 0.42 / 0.22 with the crop's estimate (path-tracing
 /// noise is larger on bright parts than on the photo's quietest blocks).
-fn crop_noise(target: &[[f32; 3]], weight: &[f32], pattern_weight: &[f32], w: usize, h: usize) -> [f32; 4] {
+fn crop_noise(target: &[[f32; 3]], unclipped: &[f32], weight: &[f32], w: usize, h: usize) -> [f32; 4] {
     std::array::from_fn(|c| {
         let plane: Vec<f32> = target.iter().map(|&p| if c < 3 { p[c] } else { crate::contrast::luma(p) }).collect();
-        crate::features::estimate_noise_sigma(&plane, if c < 3 { weight } else { pattern_weight }, w, h)
+        crate::features::estimate_noise_sigma(&plane, if c < 3 { unclipped } else { weight }, w, h)
     })
 }
 

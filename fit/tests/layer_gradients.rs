@@ -57,7 +57,6 @@ fn synthetic_view(rng: &mut SplitMix64) -> PartView {
         origin: [0, 0],
         factor: 1,
         pixels,
-        pattern_weight: weight.clone(),
         weight,
         target: vec![[0.5; 3]; width * height],
         target_linear: vec![[0.2; 3]; width * height],

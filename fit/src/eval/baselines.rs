@@ -12,7 +12,9 @@
 //!   part in the photo, showing the part in the coarse model's G-buffer (where the model is
 //!   misaligned, the render there shows another part, whose light does not scale with this
 //!   part's albedo, and the update would drive it to 0 or 1), not on the part's boundary (both
-//!   masks eroded by one pixel), and not clipped in the photo (every channel < 0.99). Roughness: the fitted material's mean roughness over the
+//!   masks eroded by one pixel). Pixels clipped in the photo count, against the render clipped
+//!   the same way (each channel at 1), as in the fit: left out, a partly clipped part would keep
+//!   only its darker pixels and come out too dark. Roughness: the fitted material's mean roughness over the
 //!   part's pixels in the input views (coarse-model G-buffers), for parts materials.json names
 //!   and the input views show; 0.7 otherwise. So flat fitted differs from the fit only in its
 //!   lack of texture and normal detail.
@@ -27,9 +29,6 @@ use super::EvalError;
 
 /// The roughness of the pixel-median baseline (IM2CAD's choice, as the paper).
 pub const PIXEL_MEDIAN_ROUGHNESS: f32 = 0.7;
-
-/// A photo value at or above this (sRGB-encoded, any channel) is clipped.
-pub const CLIP_LEVEL: f32 = 0.99;
 
 /// Per input view: model part index + 1 of each pixel (0 = none), from the view's labels matched
 /// to the model's parts by name, else (no labels) from the coarse model's G-buffer.
@@ -183,7 +182,7 @@ pub fn flat_fit(
     let mut photo_sum = vec![[0.0f64; 3]; n];
     for (v, mask) in inputs.iter().zip(masks) {
         for (p, &id) in v.truth.iter().zip(mask) {
-            if id > 0 && p.iter().all(|&c| c < CLIP_LEVEL) {
+            if id > 0 {
                 for k in 0..3 {
                     photo_sum[id as usize - 1][k] += backend::srgb_to_linear(p[k]) as f64;
                 }
@@ -198,10 +197,10 @@ pub fn flat_fit(
             let img = backend::combine_slots(&slots, slot_radiance);
             let e = exposure.get(i).copied().unwrap_or([1.0; 3]);
             on_render(format!("flat fit round {} view {}", round + 1, v.name));
-            for ((p, r), &id) in v.truth.iter().zip(&img).zip(mask) {
-                if id > 0 && p.iter().all(|&c| c < CLIP_LEVEL) {
+            for (r, &id) in img.iter().zip(mask) {
+                if id > 0 {
                     for k in 0..3 {
-                        render_sum[id as usize - 1][k] += (e[k] * r[k]) as f64;
+                        render_sum[id as usize - 1][k] += (e[k] * r[k]).min(1.0) as f64;
                     }
                 }
             }

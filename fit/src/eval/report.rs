@@ -264,7 +264,7 @@ impl Evaluation {
                 "ssim": "whole image, 11x11 Gaussian window sigma 1.5, K1 0.01, K2 0.03, valid positions, mean over channels; rows average over images",
                 "relit": "each light's radiance is the method's times the truth's relit/original ratio per channel (oracle: the true relit radiances)",
                 "pixel_median": "per part, per-channel median of the linear photo colours over its labelled pixels in the input views; roughness 0.7; flat normal",
-                "flat_fitted": "constant albedo per part from the pixel median, multiplied by photo mean / render mean per channel (linear; pixels of the input views labelled as the part, showing the part in the coarse model's G-buffer, unclipped in the photo; the fit's lights and exposures) and clamped to [0, 1], flat_iterations times; roughness: the fitted material's mean over the part's input-view pixels where materials.json names the part, else 0.7",
+                "flat_fitted": "constant albedo per part from the pixel median, multiplied by photo mean / render mean per channel (linear; pixels of the input views labelled as the part, showing the part in the coarse model's G-buffer, the render clipped at 1 as the photo is; the fit's lights and exposures) and clamped to [0, 1], flat_iterations times; roughness: the fitted material's mean over the part's input-view pixels where materials.json names the part, else 0.7",
                 "oracle": "the true materials under the true lights",
                 "exposure": "renders of an input view under the fit's lights (every method but the oracle) are multiplied by the fit's RGB exposure of that view (lights.input_exposure); novel and relit views at 1",
             },

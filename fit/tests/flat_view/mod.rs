@@ -27,7 +27,6 @@ pub fn flat_view(size: usize, step: f32) -> PartView {
         factor: 1,
         pixels,
         weight: vec![1.0; size * size],
-        pattern_weight: vec![1.0; size * size],
         target: vec![[0.5; 3]; size * size],
         target_linear: vec![[0.2; 3]; size * size],
         exposure: [1.0; 3],
