@@ -5,11 +5,12 @@
 //! pixel's value is `Σ_k R_k I_k(p)`; per colour channel the radiances minimise
 //! `Σ_p w_p (photo_p − Σ_k R_k I_k(p))²` subject to `R ≥ 0`, pooled over the pixels of every
 //! part in every view that the material fit reads ([`crate::align`]: labelled with the part,
-//! inside the aligned mask; the clipped ones as lower bounds, below), each read in the renders at the model position
-//! its part's warp gives it, where the fit takes its G-buffer and light grid from. Read at the
-//! photo pixel itself, a piece of furniture the coarse model places a few pixels off is
-//! compared with the shading of another place on it (or, at its rim, of the wall behind),
-//! and its part factor below, which the pipeline applies to its albedo, absorbs the mismatch.
+//! inside the aligned mask; the clipped ones as lower bounds, below), each read in the renders
+//! at the model position its part's warp gives it, where the fit takes its G-buffer and light
+//! grid from. Read at the photo pixel itself, a piece of furniture the coarse model places a
+//! few pixels off is compared with the shading of another place on it (or, at its rim, of the
+//! wall behind), and its part factor below, which the pipeline applies to its albedo, absorbs
+//! the mismatch.
 //! Measured with `psc eval --spp 128` (fits at `--texture-size 256 --render-spp 32`), mean-colour
 //! error of the fit over the pixel median's on the true geometry, input / novel / relit views:
 //! dev_3 (furniture up to 15 cm off in its model, one light) 0.27 / 0.32 / 0.28 read in place,
