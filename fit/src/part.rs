@@ -265,11 +265,7 @@ pub(crate) fn fit_one_part(
 }
 
 /// The homogeneous graph at linear colour `albedo` (values above 1 stay in the albedo scale).
-pub(crate) fn flat_state(
-    homogeneous: &psc_runtime::library::Material,
-    albedo: [f32; 3],
-    roughness: f32,
-) -> MaterialState {
+pub fn flat_state(homogeneous: &psc_runtime::library::Material, albedo: [f32; 3], roughness: f32) -> MaterialState {
     let info = &homogeneous.graph.info;
     let mut params = info.default_params();
     let mut albedo_scale = [1.0f32; 3];
