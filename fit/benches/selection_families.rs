@@ -10,8 +10,9 @@
 //! generated texture they hold, without the misalignment, clipping and small parts of a room,
 //! so that a change to selection can be measured on more than six cases.
 //!
-//! `cargo bench -p psc-fit --bench selection_families` (a few minutes on two cores). Reads
-//! `truth/`, as tests and `psc eval` may; `psc fit` never does.
+//! `cargo bench -p psc-fit --bench selection_families` (about ten minutes on two cores: some
+//! 20 s of selection per crop). Reads `truth/`, as tests and `psc eval` may; `psc fit` never
+//! does.
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
