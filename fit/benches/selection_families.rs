@@ -148,7 +148,7 @@ fn generated_textures(scenes: &Path) -> Vec<(PathBuf, &'static str)> {
 /// pixels per texture tile at a random rotation and offset, each pixel the box average of its
 /// footprint, with the photos' noise; its noise estimate as `targets` makes it.
 fn textured_view(library: &Library, image: &RgbImage, density: f32, seed: u64) -> PartView {
-    let mut rng = SplitMix64::new(seed.wrapping_mul(0x9e37_79b9) ^ 0x5e1e_c7);
+    let mut rng = SplitMix64::new(seed.wrapping_mul(0x9e37_79b9) ^ 0x005e_1ec7);
     let (angle, offset) = (rng.next_f32() * std::f32::consts::TAU, [rng.next_f32(), rng.next_f32()]);
     let (c, s) = (angle.cos() / density, angle.sin() / density);
     let uv_at = |x: f32, y: f32| [offset[0] + c * x - s * y, offset[1] + s * x + c * y];
