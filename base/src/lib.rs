@@ -1,11 +1,11 @@
 //! `psc-base`: the one copy of small, domain-free helpers that crates on both sides of the
 //! workspace need (the compiler chain and the image chain share no other crate).
 //!
-//! Owns: deterministic random numbers ([`SplitMix64`], [`mix64`]); the sRGB transfer and
-//! luminance ([`color`]); outputs that appear whole or
-//! not at all ([`output`]: atomic file writes, staged output folders, removal of temporaries on
-//! error, drop, SIGINT and SIGTERM); resource limits ([`limits`]: pixels, texels, samples,
-//! threads, variants and a memory budget, checked before allocating); progress reporting that
+//! Owns: deterministic random numbers ([`SplitMix64`], [`mix64`], [`mix_name`]); the sRGB
+//! transfer and luminance ([`color`]); outputs that appear whole or not at all ([`output`]:
+//! atomic file writes, staged output folders, removal of temporaries on error, drop, SIGINT and
+//! SIGTERM); resource limits ([`limits`]: pixels, texels, samples, threads, variants and a
+//! memory budget, checked before allocating); progress reporting that
 //! any crate can call and only the command line draws ([`progress`]); the one folder walker
 //! ([`walk::files_with_extension`]: follows links, never loops, lists each real file once);
 //! base64 for `data:` URIs ([`base64`]).
@@ -28,6 +28,12 @@ pub fn mix64(mut z: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
     z ^ (z >> 31)
+}
+
+/// A seed derived from `seed` and a name, so that what is seeded by name (a library graph's
+/// random draws) stays put when other names are added or reordered.
+pub fn mix_name(seed: u64, name: &str) -> u64 {
+    name.bytes().fold(seed, |h, b| mix64(h ^ u64::from(b)))
 }
 
 /// SplitMix64 (Steele, Lea and Flood 2014): a tiny deterministic generator, so that random

@@ -70,21 +70,14 @@ fn main() {
                     .expect("selection runs");
             seconds += started.elapsed().as_secs_f64();
             exemplars += library.materials.len() * settings.exemplars * settings.scales;
-            let contenders = selection.contenders(&library, settings.contenders);
+            let (contenders, starts): (Vec<usize>, Vec<Vec<MaterialState>>) =
+                selection.entrants(&library, settings.contenders, 1).into_iter().unzip();
             let problems: Vec<(Problem, Vec<MaterialState>)> = contenders
                 .iter()
-                .map(|&(g, vote)| {
-                    let problem = Problem {
-                        material: &library.materials[g],
-                        fit_view: &view,
-                        fit_loss: &loss,
-                        search_view: &view,
-                        search_loss: &loss,
-                    };
-                    (problem, vote.exemplars_of(g).take(1).map(|e| e.state.clone()).collect())
-                })
+                .zip(starts)
+                .map(|(&g, s)| (Problem::on_one_view(&library.materials[g], &view, &loss), s))
                 .collect();
-            let winner = contenders[fit_contest(&problems, &contest, Free::ALL).unwrap().winner].0;
+            let winner = contenders[fit_contest(&problems, &contest, Free::ALL).unwrap().winner];
             let graph = &library.materials[winner];
             let category = graph.graph.info.category.as_str();
             let verdict = match expected_categories(kind) {

@@ -192,16 +192,11 @@ pub(crate) fn fit_one_part(
             // The votes propose, the fit disposes: random exemplars judge a graph at random
             // parameters and scale, a start of the fit at its searched UV and fitted
             // parameters, colour and contrast.
-            let contenders = sel.contenders(library, options.select.contenders);
-            let problems: Vec<(Problem, Vec<MaterialState>)> = contenders
-                .iter()
-                .map(|&(g, vote)| {
-                    let starts = vote.exemplars_of(g).take(settings.starts).map(|e| e.state.clone()).collect();
-                    (problem_of(&library.materials[g]), starts)
-                })
-                .collect();
+            let (contenders, starts): (Vec<usize>, Vec<Vec<MaterialState>>) =
+                sel.entrants(library, options.select.contenders, settings.starts).into_iter().unzip();
+            let problems: Vec<(Problem, Vec<MaterialState>)> =
+                contenders.iter().zip(starts).map(|(&g, s)| (problem_of(&library.materials[g]), s)).collect();
             let contest = fit_contest(&problems, &settings, Free::ALL)?;
-            let contenders: Vec<usize> = contenders.iter().map(|&(g, _)| g).collect();
             for (&g, &loss) in contenders.iter().zip(&contest.start_losses) {
                 if let Some(r) = sel.pattern.ranking.iter_mut().find(|r| r.graph == library.materials[g].name()) {
                     r.start_loss = Some(loss);

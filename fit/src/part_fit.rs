@@ -83,6 +83,14 @@ pub struct Problem<'a> {
     pub search_loss: &'a PartLoss,
 }
 
+impl<'a> Problem<'a> {
+    /// A problem whose UV search runs on the same pixels as the fit (tests and benches; the
+    /// command searches on a coarser sampling of the part).
+    pub fn on_one_view(material: &'a Material, view: &'a PartView, loss: &'a PartLoss) -> Problem<'a> {
+        Problem { material, fit_view: view, fit_loss: loss, search_view: view, search_loss: loss }
+    }
+}
+
 /// One start of a fit: its global UV search (when asked) and its short run.
 pub struct Started {
     run: Run,

@@ -14,13 +14,13 @@ mod flat_view;
 use flat_view::flat_view;
 use psc_base::SplitMix64;
 use psc_fit::features::{FeatureConfig, Scratch};
-use psc_fit::layer::{MaterialState, Sampling, Workspace};
+use psc_fit::layer::{MaterialState, PartView, Sampling, Workspace};
 use psc_fit::loss::{LossWeights, PartLoss};
 use psc_fit::optim::Free;
 use psc_fit::part_fit::{fit_contest, FitSettings, Problem};
 use psc_fit::select::{select, SelectSettings};
 use psc_fit::uvmap::UvTransform;
-use psc_runtime::library::{default_library_root, Library};
+use psc_runtime::library::{default_library_root, Library, Material};
 
 const PANEL: [&str; 8] = [
     "oak_planks",
@@ -32,6 +32,18 @@ const PANEL: [&str; 8] = [
     "quartz_surface",
     "subway_tiles",
 ];
+
+/// A `size`² flat crop whose photo is `material` at its defaults, seen through `uv`.
+fn photo_of(material: &Material, uv: UvTransform, size: usize) -> PartView {
+    let mut view = flat_view(size, 1.0 / size as f32);
+    let state =
+        MaterialState { params: material.graph.info.default_params(), uv, albedo_scale: [1.0; 3], roughness: 0.5 };
+    let mut ws = Workspace::default();
+    view.render(material, &state, Sampling::default(), &mut ws).unwrap();
+    view.target = ws.image.clone();
+    view.target_linear = ws.linear.clone();
+    view
+}
 
 #[test]
 fn the_vote_proposes_and_the_contest_chooses_the_graph_that_made_the_photo() {
@@ -55,37 +67,20 @@ fn the_vote_proposes_and_the_contest_chooses_the_graph_that_made_the_photo() {
     for (target_index, &target_graph) in panel.iter().enumerate().take(3) {
         let material = &library.materials[target_graph];
         for seed in [1u64, 2] {
-            let mut view = flat_view(96, 1.0 / 96.0);
             let mut rng = SplitMix64::new(seed * 7919 + target_index as u64);
-            let state = MaterialState {
-                params: material.graph.info.default_params(),
-                uv: UvTransform { rotation: rng.next_f32() * 3.0, log_scale: 1.0, offset: [0.31, 0.57] },
-                albedo_scale: [1.0; 3],
-                roughness: 0.5,
-            };
-            let mut ws = Workspace::default();
-            view.render(material, &state, Sampling::default(), &mut ws).unwrap();
-            view.target = ws.image.clone();
-            view.target_linear = ws.linear.clone();
+            let uv = UvTransform { rotation: rng.next_f32() * 3.0, log_scale: 1.0, offset: [0.31, 0.57] };
+            let view = photo_of(material, uv, 96);
             let mut scratch = Scratch::default();
             let loss = PartLoss::new(&view, LossWeights::default(), &FeatureConfig::default(), &mut scratch).unwrap();
             let selection = select(&library, &view, &loss, settings, Sampling::default(), seed, Some(&panel)).unwrap();
-            let contenders = selection.contenders(&library, settings.contenders);
+            let (contenders, starts): (Vec<usize>, Vec<Vec<MaterialState>>) =
+                selection.entrants(&library, settings.contenders, fit.starts).into_iter().unzip();
             let problems: Vec<(Problem, Vec<MaterialState>)> = contenders
                 .iter()
-                .map(|&(g, vote)| {
-                    let problem = Problem {
-                        material: &library.materials[g],
-                        fit_view: &view,
-                        fit_loss: &loss,
-                        search_view: &view,
-                        search_loss: &loss,
-                    };
-                    (problem, vote.exemplars_of(g).take(fit.starts).map(|e| e.state.clone()).collect())
-                })
+                .zip(starts)
+                .map(|(&g, s)| (Problem::on_one_view(&library.materials[g], &view, &loss), s))
                 .collect();
             let contest = fit_contest(&problems, &fit, Free::ALL).unwrap();
-            let contenders: Vec<usize> = contenders.iter().map(|&(g, _)| g).collect();
             let standings: Vec<String> = contenders
                 .iter()
                 .zip(&contest.start_losses)
@@ -155,4 +150,30 @@ fn the_contenders_are_the_pattern_votes_top_and_the_whole_loss_winner() {
     assert_eq!(got, ["oak_planks", "english_bond", "striped_rug"].map(index).to_vec(), "no contender twice");
     let got: Vec<usize> = selection.contenders(&library, 1).iter().map(|&(g, _)| g).collect();
     assert_eq!(got, ["oak_planks", "english_bond"].map(index).to_vec(), "one from each vote");
+}
+
+/// A graph's exemplars are drawn from a seed made of its name, not of its place in the library:
+/// a graph added in front of it (here: the library without its first graphs, and with them)
+/// leaves its exemplars, and so its votes, as they were.
+#[test]
+fn a_graphs_exemplars_do_not_move_when_graphs_are_added_before_it() {
+    let full = Library::load(&default_library_root()).expect("the graph library compiles");
+    let fewer = Library {
+        materials: full.materials[5..].to_vec(),
+        front_end_time: full.front_end_time,
+        jit_time: full.jit_time,
+    };
+    let name = "oak_planks";
+    let index_in = |library: &Library| library.materials.iter().position(|m| m.name() == name).unwrap();
+    let view = photo_of(full.get("plaster").unwrap(), UvTransform::default(), 48);
+    let mut scratch = Scratch::default();
+    let loss = PartLoss::new(&view, LossWeights::default(), &FeatureConfig::default(), &mut scratch).unwrap();
+    let settings = SelectSettings { exemplars: 3, scales: 2, ..SelectSettings::default() };
+    let exemplars = |library: &Library| {
+        let g = index_in(library);
+        let selection = select(library, &view, &loss, settings, Sampling::default(), 11, Some(&[g])).unwrap();
+        selection.pattern.exemplars_of(g).map(|e| (e.state.params.clone(), e.state.uv, e.loss)).collect::<Vec<_>>()
+    };
+    assert_ne!(index_in(&full), index_in(&fewer));
+    assert_eq!(exemplars(&full), exemplars(&fewer));
 }
