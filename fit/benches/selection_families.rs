@@ -70,8 +70,7 @@ fn main() {
                     .expect("selection runs");
             seconds += started.elapsed().as_secs_f64();
             exemplars += library.materials.len() * settings.exemplars * settings.scales;
-            let (contenders, starts): (Vec<usize>, Vec<Vec<MaterialState>>) =
-                selection.entrants(&library, settings.contenders, 1).into_iter().unzip();
+            let (contenders, starts) = selection.entrants(&library, settings.contenders, 1);
             let problems: Vec<(Problem, Vec<MaterialState>)> = contenders
                 .iter()
                 .zip(starts)

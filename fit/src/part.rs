@@ -186,14 +186,13 @@ pub(crate) fn fit_one_part(
         search_view: &search_view,
         search_loss: &search_loss,
     };
-    let index_of = |graph: &str| library.materials.iter().position(|m| m.name() == graph).expect("checked above");
+    let index_of = |graph: &str| library.index_of(graph).expect("checked above");
     let (graph_index, fit) = match (forced, continued, &mut selection) {
         (None, None, Some(sel)) => {
             // The votes propose, the fit disposes: random exemplars judge a graph at random
             // parameters and scale, a start of the fit at its searched UV and fitted
             // parameters, colour and contrast.
-            let (contenders, starts): (Vec<usize>, Vec<Vec<MaterialState>>) =
-                sel.entrants(library, options.select.contenders, settings.starts).into_iter().unzip();
+            let (contenders, starts) = sel.entrants(library, options.select.contenders, settings.starts);
             let problems: Vec<(Problem, Vec<MaterialState>)> =
                 contenders.iter().zip(starts).map(|(&g, s)| (problem_of(&library.materials[g]), s)).collect();
             let contest = fit_contest(&problems, &settings, Free::ALL)?;

@@ -48,8 +48,8 @@
 //! texture of the dev scenes on a flat, evenly lit 96×96 crop at 160 and 64 pixels per tile,
 //! with the photos' noise), the family matches the kind's on 13 of 20 crops: planks 6 of 8,
 //! plaster 4 of 8 (the others to a marble or a metal), stripes 3 of 4. Before `printed_stripes`
-//! and `limewash` (and with the seeding by library place), 9 of 20: planks 5, plaster 4, stripes 0, for no
-//! graph had flat bands of several colours.
+//! and `limewash` (and with the seeding by library place), 9 of 20: planks 5, plaster 4, stripes
+//! 0, for no graph had flat bands of several colours.
 //!
 //! Each exemplar's draw is seeded by its graph's name ([`psc_base::mix_name`]), not its place
 //! in the library: seeded by place, two graphs inserted into the library reshuffled the draws
@@ -66,8 +66,8 @@
 //! 0.055); with one change `printed_stripes` tops the vote (0.023) and wins the rug at both
 //! seeds (0.0098, 0.0099). But the bench fell from 13 to 10 of 20 (planks 5, plaster 2: faint
 //! plaster went to marble, metal or canvas; independent brightnesses also draw exemplars of
-//! lower contrast, which a faint photo needs), and on the dev scenes at seed 0 dev_2's lights went
-//! from 0.1% to 18.8% off the truth's ratio. A draw that keeps the palette's structure but
+//! lower contrast, which a faint photo needs), and on the dev scenes at seed 0 dev_2's lights
+//! went from 0.1% to 18.8% off the truth's ratio. A draw that keeps the palette's structure but
 //! scales its spread would serve both; it is not measured yet.
 
 use psc_base::{mix64, SplitMix64};
@@ -158,7 +158,7 @@ impl Selection {
     /// exemplars start it): the pattern vote's top `n`, then the whole-loss vote's winner if it
     /// is not among them.
     pub fn contenders(&self, library: &Library, n: usize) -> Vec<(usize, &Vote)> {
-        let index = |r: &Ranked| library.materials.iter().position(|m| m.name() == r.graph);
+        let index = |r: &Ranked| library.index_of(&r.graph);
         let mut out: Vec<(usize, &Vote)> =
             self.pattern.ranking.iter().take(n.max(1)).filter_map(index).map(|g| (g, &self.pattern)).collect();
         if let Some(g) = self.whole.ranking.first().and_then(index) {
@@ -169,13 +169,13 @@ impl Selection {
         out
     }
 
-    /// The contest's entrants: each of [`Selection::contenders`] (library index) with up to
+    /// The contest's entrants: [`Selection::contenders`] (library indices) and, for each, up to
     /// `starts` start states, its vote's best exemplars.
-    pub fn entrants(&self, library: &Library, n: usize, starts: usize) -> Vec<(usize, Vec<MaterialState>)> {
+    pub fn entrants(&self, library: &Library, n: usize, starts: usize) -> (Vec<usize>, Vec<Vec<MaterialState>>) {
         self.contenders(library, n)
             .into_iter()
-            .map(|(g, vote)| (g, vote.exemplars_of(g).take(starts).map(|e| e.state.clone()).collect()))
-            .collect()
+            .map(|(g, vote)| (g, vote.exemplars_of(g).take(starts).map(|e| e.state.clone()).collect::<Vec<_>>()))
+            .unzip()
     }
 }
 

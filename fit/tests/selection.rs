@@ -48,16 +48,8 @@ fn photo_of(material: &Material, uv: UvTransform, size: usize) -> PartView {
 #[test]
 fn the_vote_proposes_and_the_contest_chooses_the_graph_that_made_the_photo() {
     let library = Library::load(&default_library_root()).expect("the graph library compiles");
-    let panel: Vec<usize> = PANEL
-        .iter()
-        .map(|name| {
-            library
-                .materials
-                .iter()
-                .position(|m| m.name() == *name)
-                .unwrap_or_else(|| panic!("{name} is in the library"))
-        })
-        .collect();
+    let panel: Vec<usize> =
+        PANEL.iter().map(|name| library.index_of(name).unwrap_or_else(|| panic!("{name} is in the library"))).collect();
     // PhotoScene's 21 voters of 71 graphs, for a library of 24.
     let settings = SelectSettings { k: Some(7), ..SelectSettings::default() };
     // The contest alone: each contender's first start decides, and the winner stops there.
@@ -73,8 +65,7 @@ fn the_vote_proposes_and_the_contest_chooses_the_graph_that_made_the_photo() {
             let mut scratch = Scratch::default();
             let loss = PartLoss::new(&view, LossWeights::default(), &FeatureConfig::default(), &mut scratch).unwrap();
             let selection = select(&library, &view, &loss, settings, Sampling::default(), seed, Some(&panel)).unwrap();
-            let (contenders, starts): (Vec<usize>, Vec<Vec<MaterialState>>) =
-                selection.entrants(&library, settings.contenders, fit.starts).into_iter().unzip();
+            let (contenders, starts) = selection.entrants(&library, settings.contenders, fit.starts);
             let problems: Vec<(Problem, Vec<MaterialState>)> = contenders
                 .iter()
                 .zip(starts)
@@ -139,7 +130,7 @@ fn the_contenders_are_the_pattern_votes_top_and_the_whole_loss_winner() {
             .collect(),
         exemplars: Vec::new(),
     };
-    let index = |name: &str| library.materials.iter().position(|m| m.name() == name).unwrap();
+    let index = |name: &str| library.index_of(name).unwrap();
     let pattern = ["oak_planks", "english_bond", "striped_rug", "plaster"];
     let selection = Selection { pattern: ranked(&pattern), whole: ranked(&["plaster", "oak_planks"]), k: 3 };
     let got: Vec<usize> = selection.contenders(&library, 3).iter().map(|&(g, _)| g).collect();
@@ -163,8 +154,7 @@ fn a_graphs_exemplars_do_not_move_when_graphs_are_added_before_it() {
         front_end_time: full.front_end_time,
         jit_time: full.jit_time,
     };
-    let name = "oak_planks";
-    let index_in = |library: &Library| library.materials.iter().position(|m| m.name() == name).unwrap();
+    let index_in = |library: &Library| library.index_of("oak_planks").unwrap();
     let view = photo_of(full.get("plaster").unwrap(), UvTransform::default(), 48);
     let mut scratch = Scratch::default();
     let loss = PartLoss::new(&view, LossWeights::default(), &FeatureConfig::default(), &mut scratch).unwrap();

@@ -112,7 +112,12 @@ impl Library {
     }
 
     pub fn get(&self, name: &str) -> Option<&Arc<Material>> {
-        self.materials.iter().find(|m| m.name() == name)
+        self.index_of(name).map(|i| &self.materials[i])
+    }
+
+    /// The index in [`Library::materials`] of the graph called `name`.
+    pub fn index_of(&self, name: &str) -> Option<usize> {
+        self.materials.iter().position(|m| m.name() == name)
     }
 
     pub fn names(&self) -> impl Iterator<Item = &str> {
