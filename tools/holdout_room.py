@@ -235,6 +235,9 @@ def build(args, rng, pool, work):
                   relit)
         relit.flush()
         for view in truth["relit_views"]:
+            # Only this key's radiances are redrawn (redraw_lights).
+            if view.get("radiance_key", "relit_radiance_rgb") != "relit_radiance_rgb":
+                raise ValueError(f"relit view {view['name']}: radiance_key {view['radiance_key']} is not redrawn")
             render(view["camera"], sizes.get(view.get("view"), first), view["image"], lights=relit.name)
     return truth
 
