@@ -89,8 +89,9 @@
 //! seed 0's 12 true-geometry cells 3.91 against 3.82 (g3's novel views 0.53 against 0.42); on
 //! the dev scenes at seed 0 the family 4 of 6 against 3, contrast summed over the 12 cells 5.79
 //! against 5.95 (dev_2's novel views 0.28 against 0.42, dev_4's 0.82 against 0.76), but the
-//! lights between two lights 26.4% off on dev_1 (13.1%) and 4.9% on dev_2 (0.1%). A better family at one seed or two,
-//! paid for in lights, is not yet a measured gain; left at ten until it is measured over seeds.
+//! lights between two lights 26.4% off on dev_1 (13.1%) and 4.9% on dev_2 (0.1%). A better
+//! family at one seed or two, paid for in lights, is not yet a measured gain; left at ten until
+//! it is measured over seeds.
 
 use psc_base::{mix64, SplitMix64};
 use psc_runtime::library::{Library, Material};
