@@ -384,9 +384,8 @@ mod tests {
 
     #[test]
     fn temporary_names_parse_back() {
-        let dir = std::env::temp_dir().join(format!("psc-base-names-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = tempfile::Builder::new().prefix("psc-base-names-").tempdir().unwrap();
+        let dir = tmp.path();
         // A temporary of a process that cannot exist (pid above Linux's maximum) is stale; ours
         // and other names are not touched.
         let stale = dir.join(format!("{TMP_PREFIX}4194305-3-out"));
@@ -395,11 +394,11 @@ mod tests {
         for p in [&stale, &ours, &other] {
             std::fs::create_dir(p).unwrap();
         }
-        remove_stale(&dir, "out");
+        remove_stale(dir, "out");
         if cfg!(target_os = "linux") {
             assert!(!stale.exists());
         }
         assert!(ours.exists() && other.exists());
-        std::fs::remove_dir_all(&dir).unwrap();
+        tmp.close().unwrap();
     }
 }

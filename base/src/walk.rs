@@ -92,32 +92,31 @@ pub fn files_with_extension(root: &Path, extension: &str) -> io::Result<Vec<Path
 mod tests {
     use super::*;
 
-    fn scratch(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("psc-walk-{name}-{}", std::process::id()));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).unwrap();
-        dir
+    fn scratch(name: &str) -> tempfile::TempDir {
+        tempfile::Builder::new().prefix(&format!("psc-walk-{name}-")).tempdir().unwrap()
     }
 
     #[test]
     fn lists_matching_files_recursively_and_sorted() {
-        let dir = scratch("plain");
+        let tmp = scratch("plain");
+        let dir = tmp.path();
         fs::create_dir_all(dir.join("b/c")).unwrap();
         for f in ["z.psg", "a.txt", "b/y.psg", "b/c/x.psg", "b/c/x.psg.bak"] {
             fs::write(dir.join(f), "").unwrap();
         }
-        let got = files_with_extension(&dir, "psg").unwrap();
+        let got = files_with_extension(dir, "psg").unwrap();
         let want: Vec<PathBuf> = ["b/c/x.psg", "b/y.psg", "z.psg"].iter().map(|f| dir.join(f)).collect();
         assert_eq!(got, want);
         assert!(files_with_extension(&dir.join("missing"), "psg").unwrap_err().to_string().contains("missing"));
-        fs::remove_dir_all(&dir).unwrap();
+        tmp.close().unwrap();
     }
 
     #[cfg(unix)]
     #[test]
     fn link_loops_and_second_names_are_walked_once() {
         use std::os::unix::fs::symlink;
-        let dir = scratch("loops");
+        let tmp = scratch("loops");
+        let dir = tmp.path();
         fs::create_dir_all(dir.join("a")).unwrap();
         fs::write(dir.join("a/x.psg"), "").unwrap();
         fs::write(dir.join("top.psg"), "").unwrap();
@@ -125,10 +124,10 @@ mod tests {
         symlink("../a", dir.join("a/again")).unwrap();
         symlink("top.psg", dir.join("same.psg")).unwrap();
         symlink("nowhere.psg", dir.join("dangling.psg")).unwrap();
-        let got = files_with_extension(&dir, "psg").unwrap();
+        let got = files_with_extension(dir, "psg").unwrap();
         // `same.psg` sorts before `top.psg` but is a link: the real name wins.
         let want: Vec<PathBuf> = ["a/x.psg", "dangling.psg", "top.psg"].iter().map(|f| dir.join(f)).collect();
         assert_eq!(got, want);
-        fs::remove_dir_all(&dir).unwrap();
+        tmp.close().unwrap();
     }
 }

@@ -7,11 +7,8 @@ use std::process::{Command, Stdio};
 
 use psc_base::output::{write_atomic, write_atomic_with, OutputError, Replace, StagedDir};
 
-fn temp_dir(tag: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("psc-base-output-{}-{tag}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn temp_dir(tag: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("psc-base-output-{tag}-")).tempdir().unwrap()
 }
 
 /// Names in `dir`, sorted.
@@ -24,7 +21,8 @@ fn listing(dir: &Path) -> Vec<String> {
 
 #[test]
 fn atomic_write_replaces_whole_and_a_failing_writer_leaves_nothing() {
-    let dir = temp_dir("atomic");
+    let tmp = temp_dir("atomic");
+    let dir = tmp.path();
     let p = dir.join("a.json");
     write_atomic(&p, b"first").unwrap();
     write_atomic(&p, b"second").unwrap();
@@ -36,7 +34,7 @@ fn atomic_write_replaces_whole_and_a_failing_writer_leaves_nothing() {
     .unwrap_err();
     assert!(e.to_string().contains("encoder failed") && e.to_string().contains("a.json"), "{e}");
     assert_eq!(std::fs::read(&p).unwrap(), b"second", "the old file is untouched");
-    assert_eq!(listing(&dir), ["a.json"], "no temporary left");
+    assert_eq!(listing(dir), ["a.json"], "no temporary left");
     // The temporary keeps the destination's extension (encoders choose the format by it).
     write_atomic_with(&dir.join("b.png"), |tmp| {
         assert!(tmp.to_string_lossy().ends_with("b.png"), "{}", tmp.display());
@@ -50,7 +48,8 @@ fn atomic_write_replaces_whole_and_a_failing_writer_leaves_nothing() {
 
 #[test]
 fn a_staged_folder_appears_only_on_commit_and_vanishes_on_drop() {
-    let dir = temp_dir("staged");
+    let tmp = temp_dir("staged");
+    let dir = tmp.path();
     let dest = dir.join("out");
     let staged = StagedDir::new(&dest, Replace::No).unwrap();
     std::fs::write(staged.path().join("a.exr"), b"a").unwrap();
@@ -59,7 +58,7 @@ fn a_staged_folder_appears_only_on_commit_and_vanishes_on_drop() {
     assert!(!dest.exists(), "nothing at the destination before commit");
     staged.commit().unwrap();
     assert_eq!(listing(&dest), ["a.exr", "sub"]);
-    assert_eq!(listing(&dir), ["out"], "no temporary left");
+    assert_eq!(listing(dir), ["out"], "no temporary left");
 
     // A writer that fails half-way (the staged folder is dropped): nothing appears.
     let dest2 = dir.join("out2");
@@ -70,12 +69,13 @@ fn a_staged_folder_appears_only_on_commit_and_vanishes_on_drop() {
     })();
     assert!(result.is_err());
     assert!(!dest2.exists());
-    assert_eq!(listing(&dir), ["out"], "the temporary was removed");
+    assert_eq!(listing(dir), ["out"], "the temporary was removed");
 }
 
 #[test]
 fn an_existing_folder_is_refused_without_replace_and_replaced_whole_with_it() {
-    let dir = temp_dir("replace");
+    let tmp = temp_dir("replace");
+    let dir = tmp.path();
     let dest = dir.join("gbuf");
     std::fs::create_dir(&dest).unwrap();
     std::fs::write(dest.join("old_only.exr"), b"old").unwrap();
@@ -93,7 +93,7 @@ fn an_existing_folder_is_refused_without_replace_and_replaced_whole_with_it() {
     staged.commit().unwrap();
     assert_eq!(listing(&dest), ["new_only.exr", "shared.exr"], "no old file survives beside the new ones");
     assert_eq!(std::fs::read(dest.join("shared.exr")).unwrap(), b"new");
-    assert_eq!(listing(&dir), ["gbuf"]);
+    assert_eq!(listing(dir), ["gbuf"]);
 
     // A file where the folder should go is not replaced even when asked.
     let file = dir.join("notes.txt");
@@ -145,25 +145,27 @@ fn interrupt_child(dir: &Path, signal: &str) -> std::process::ExitStatus {
 fn sigint_and_sigterm_remove_every_temporary() {
     use std::os::unix::process::ExitStatusExt;
     for signal in ["-INT", "-TERM"] {
-        let dir = temp_dir(&format!("signal{signal}"));
-        let status = interrupt_child(&dir, signal);
+        let tmp = temp_dir(&format!("signal{signal}"));
+        let dir = tmp.path();
+        let status = interrupt_child(dir, signal);
         assert_eq!(status.code(), Some(130), "{signal}: exit status {status:?} (signal {:?})", status.signal());
-        assert_eq!(listing(&dir), Vec::<String>::new(), "{signal}: nothing left behind");
+        assert_eq!(listing(dir), Vec::<String>::new(), "{signal}: nothing left behind");
     }
 }
 
 #[cfg(target_os = "linux")]
 #[test]
 fn temporaries_of_a_killed_process_are_removed_by_the_next_run() {
-    let dir = temp_dir("sigkill");
-    let status = interrupt_child(&dir, "-KILL");
+    let tmp = temp_dir("sigkill");
+    let dir = tmp.path();
+    let status = interrupt_child(dir, "-KILL");
     assert!(!status.success());
-    let left = listing(&dir);
+    let left = listing(dir);
     assert_eq!(left.len(), 2, "SIGKILL leaves the two temporaries: {left:?}");
     assert!(left.iter().all(|n| n.starts_with(".psc-tmp-")), "hidden, recognisable names: {left:?}");
     assert!(!dir.join("out").exists() && !dir.join("single.bin").exists(), "no partial output");
     // The next writer of the same outputs removes them.
     StagedDir::new(&dir.join("out"), Replace::No).unwrap().commit().unwrap();
     write_atomic(&dir.join("single.bin"), b"x").unwrap();
-    assert_eq!(listing(&dir), ["out", "single.bin"]);
+    assert_eq!(listing(dir), ["out", "single.bin"]);
 }

@@ -13,11 +13,8 @@ fn repo() -> PathBuf {
 }
 
 /// A fresh, empty scratch folder per test.
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("psc-cli-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("psc-cli-test-{name}-")).tempdir().unwrap()
 }
 
 fn text(bytes: &[u8]) -> String {
@@ -78,7 +75,7 @@ fn missing_inputs_are_errors_not_panics() {
 #[test]
 fn bake_writes_every_map_and_random_variants() {
     let scratch_dir = scratch("bake");
-    let dir = scratch_dir.join("maps");
+    let dir = scratch_dir.path().join("maps");
     let out = psc(&["bake", "knit", "--size", "16", "--random", "2", "--seed", "3", "--out", dir.to_str().unwrap()]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let mut names: Vec<String> =
@@ -91,12 +88,12 @@ fn bake_writes_every_map_and_random_variants() {
             "{suffix} for defaults + 2 variants in {names:?}"
         );
     }
-    let _ = std::fs::remove_dir_all(&scratch_dir);
 }
 
 #[test]
 fn bake_refuses_out_of_range_parameters_and_writes_nothing() {
-    let dir = scratch("bake-bad");
+    let tmp = scratch("bake-bad");
+    let dir = tmp.path();
     let params = dir.join("p.json");
     std::fs::write(&params, r#"{"rows": 99}"#).unwrap();
     let out_dir = dir.join("maps");
@@ -114,7 +111,6 @@ fn bake_refuses_out_of_range_parameters_and_writes_nothing() {
     assert!(text(&out.stderr).contains("rows"), "{}", text(&out.stderr));
     let written = std::fs::read_dir(&out_dir).map(|d| d.count()).unwrap_or(0);
     assert_eq!(written, 0, "a refused bake must not leave files");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `psc render examples/room` with the bundled assignment and lights, 1 spp, at `size`.
@@ -138,7 +134,8 @@ fn render_example_room(size: &str, out: &Path) -> Output {
 
 #[test]
 fn render_the_example_room_with_procedural_materials() {
-    let dir = scratch("render");
+    let tmp = scratch("render");
+    let dir = tmp.path();
     let image = dir.join("room.png");
     let out = render_example_room("32x24", &image);
     assert!(out.status.success(), "{}", text(&out.stderr));
@@ -177,7 +174,6 @@ fn render_the_example_room_with_procedural_materials() {
     let stderr = text(&out.stderr);
     assert!(stderr.contains("part `flor`") && stderr.contains("floor"), "{stderr}");
     assert!(!image2.exists(), "no output after an error");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

@@ -12,8 +12,8 @@ use std::process::Command;
 #[test]
 fn render_reads_truth_when_asked_for_by_name() {
     let Some(dir) = dev_scenes::dev_scene("dev_1", "render_reads_truth_when_asked_for_by_name") else { return };
-    let out_dir = std::env::temp_dir().join(format!("psc-cli-dev-scene-{}", std::process::id()));
-    std::fs::create_dir_all(&out_dir).unwrap();
+    let out_tmp = tempfile::Builder::new().prefix("psc-cli-dev-scene-").tempdir().unwrap();
+    let out_dir = out_tmp.path();
     let image = out_dir.join("truth.exr");
     let run = |extra: &[&str]| {
         let mut args = vec!["render", dir.to_str().unwrap(), "--spp", "1", "--size", "16x12", "--quiet"];
@@ -32,5 +32,4 @@ fn render_reads_truth_when_asked_for_by_name() {
         .unwrap();
     assert!(out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("unit radiance"), "{}", String::from_utf8_lossy(&out.stderr));
-    let _ = std::fs::remove_dir_all(&out_dir);
 }

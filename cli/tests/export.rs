@@ -27,11 +27,8 @@ fn psc(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_psc")).args(args).current_dir(root()).output().expect("psc runs")
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("psc-export-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("psc-export-test-{name}-")).tempdir().unwrap()
 }
 
 fn text(o: &Output) -> String {
@@ -214,9 +211,10 @@ fn check_tangents(out: &Path) -> usize {
 
 #[test]
 fn the_gltf_holds_the_scene_as_the_renderer_sees_it() {
-    let dir = scratch("gltf");
+    let tmp = scratch("gltf");
+    let dir = tmp.path();
     let assign = root().join("examples/room/materials.json");
-    let out = export_room(&dir, None, "32");
+    let out = export_room(dir, None, "32");
     check_geometry(&out, &assign);
     assert!(check_tangents(&out) > 0, "no normal-mapped part was checked");
 
@@ -238,12 +236,12 @@ fn the_gltf_holds_the_scene_as_the_renderer_sees_it() {
         }
     }
     assert!(doc.extensions_used.iter().any(|e| e == "KHR_materials_emissive_strength"));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn rotated_and_offset_uv_transforms_are_baked_into_the_texcoords_and_tangents() {
-    let dir = scratch("rotated");
+    let tmp = scratch("rotated");
+    let dir = tmp.path();
     let assign = dir.join("rotated.json");
     std::fs::write(
         &assign,
@@ -253,16 +251,16 @@ fn rotated_and_offset_uv_transforms_are_baked_into_the_texcoords_and_tangents() 
             "crate_crate": { "graph": "painted_wood", "uv_rotation_deg": 90 } } }"#,
     )
     .unwrap();
-    let out = export_room(&dir, Some(&assign), "16");
+    let out = export_room(dir, Some(&assign), "16");
     check_geometry(&out, &assign);
     assert!(check_tangents(&out) > 0);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn the_mitsuba_scene_names_every_part_light_and_view() {
-    let dir = scratch("xml");
-    let out = export_room(&dir, None, "16");
+    let tmp = scratch("xml");
+    let dir = tmp.path();
+    let out = export_room(dir, None, "16");
     let xml = std::fs::read_to_string(out.join("scene_mitsuba.xml")).unwrap();
     let doc = roxmltree::Document::parse(&xml).expect("scene_mitsuba.xml is well-formed XML");
     let scene = Scene::load(&root().join("examples/room")).unwrap();
@@ -291,12 +289,12 @@ fn the_mitsuba_scene_names_every_part_light_and_view() {
     let sensors: Vec<String> =
         doc.root_element().children().filter(|n| n.has_tag_name("sensor")).map(|n| id(&n)).collect();
     assert_eq!(sensors, scene.views.iter().map(|v| v.name.clone()).collect::<Vec<_>>());
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn bad_input_is_refused_and_nothing_is_written() {
-    let dir = scratch("bad");
+    let tmp = scratch("bad");
+    let dir = tmp.path();
     let cases: [(&str, &str, &str, &str); 4] = [
         ("unknown part", r#"{"parts": {"sofa": {"graph": "plaster"}}}"#, "", "sofa"),
         ("unknown graph", r#"{"parts": {"floor": {"graph": "no_such_graph"}}}"#, "", "no_such_graph"),
@@ -334,7 +332,7 @@ fn bad_input_is_refused_and_nothing_is_written() {
         assert_eq!(o.status.code(), Some(1), "{what}: {}", text(&o));
         assert!(text(&o).contains(named), "{what}: the message names {named}: {}", text(&o));
         assert!(!out.exists(), "{what}: nothing may be written");
-        let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        let leftovers: Vec<_> = std::fs::read_dir(dir)
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .filter(|n| n.starts_with(".psc-tmp"))
@@ -359,7 +357,6 @@ fn bad_input_is_refused_and_nothing_is_written() {
     assert!(text(&o).contains("--force") || text(&o).contains("exists"), "{}", text(&o));
     assert_eq!(std::fs::read_to_string(out.join("keep.txt")).unwrap(), "mine");
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Skip loudly where a checker is missing; under `CI` fail instead, unless `unavailable` (set
@@ -387,14 +384,14 @@ fn the_khronos_validator_finds_no_errors() {
     {
         return;
     }
-    let dir = scratch("validator");
-    let out = export_room(&dir, None, "64");
+    let tmp = scratch("validator");
+    let dir = tmp.path();
+    let out = export_room(dir, None, "64");
     let o =
         Command::new("node").arg(root().join("tools/gltf_validate.js")).arg(out.join("scene.gltf")).output().unwrap();
     println!("{}", text(&o));
     assert_eq!(o.status.code(), Some(0), "the validator reports errors:\n{}", text(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains(" 0 errors"), "{}", text(&o));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Runs tools/export_mitsuba_check.py; returns (mean ratio, channel ratios, 8x8-block relative
@@ -425,8 +422,9 @@ fn mitsuba_renders_the_export_close_to_psc_render() {
     if !have && missing("mitsuba", "pip install mitsuba numpy", true, "PSC_MITSUBA_UNAVAILABLE") {
         return;
     }
-    let dir = scratch("mitsuba");
-    let out = export_room(&dir, None, "128");
+    let tmp = scratch("mitsuba");
+    let dir = tmp.path();
+    let out = export_room(dir, None, "128");
     let render = |name: &str, extra: &[&str]| {
         let path = dir.join(name);
         let mut args = vec![
@@ -470,7 +468,6 @@ fn mitsuba_renders_the_export_close_to_psc_render() {
         let broken = mitsuba_check(&out, &ours_lambert, &["--diffuse", "--perturb", perturb, "--spp", "8"]);
         assert!(!agrees(&broken, 0.12, 0.15), "{perturb} went unnoticed: {}", broken.3);
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -480,8 +477,9 @@ fn blender_imports_the_gltf_and_renders_a_frame() {
         not_run::say_skipped("blender not installed (apt-get install blender python3-numpy)");
         return;
     }
-    let dir = scratch("blender");
-    let out = export_room(&dir, None, "64");
+    let tmp = scratch("blender");
+    let dir = tmp.path();
+    let out = export_room(dir, None, "64");
     let frame = dir.join("frame.png");
     let o = Command::new("blender")
         .args(["-b", "--factory-startup", "--python"])
@@ -493,5 +491,4 @@ fn blender_imports_the_gltf_and_renders_a_frame() {
         .unwrap();
     assert!(o.status.success() && text(&o).contains("BLENDER_GLTF_CHECK OK"), "{}", text(&o));
     assert!(std::fs::metadata(&frame).is_ok_and(|m| m.len() > 0), "no frame rendered");
-    let _ = std::fs::remove_dir_all(&dir);
 }

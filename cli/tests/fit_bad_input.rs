@@ -14,11 +14,11 @@ fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-/// A scratch folder holding a copy of the example room at `<scratch>/room`.
-fn room(case: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("psc-fit-bad-{}-{case}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    copy_tree(&repo().join("examples/room"), &dir.join("room"), &[]);
+/// A scratch folder holding a copy of the example room at `<scratch>/room`, removed when the
+/// returned guard is dropped.
+fn room(case: &str) -> tempfile::TempDir {
+    let dir = tempfile::Builder::new().prefix(&format!("psc-fit-bad-{case}-")).tempdir().unwrap();
+    copy_tree(&repo().join("examples/room"), &dir.path().join("room"), &[]);
     dir
 }
 
@@ -53,51 +53,57 @@ fn fails(scratch: &Path, extra: &[&str]) -> String {
 
 #[test]
 fn label_image_of_another_size() {
-    let s = room("labels-size");
+    let tmp = room("labels-size");
+    let s = tmp.path();
     image::GrayImage::new(160, 120).save(s.join("room/views/view0_parts.png")).unwrap();
-    let err = fails(&s, &[]);
+    let err = fails(s, &[]);
     assert!(err.contains("160x120") && err.contains("320x240"), "{err}");
 }
 
 #[test]
 fn missing_photo() {
-    let s = room("no-photo");
+    let tmp = room("no-photo");
+    let s = tmp.path();
     std::fs::remove_file(s.join("room/views/view0.png")).unwrap();
-    let err = fails(&s, &[]);
+    let err = fails(s, &[]);
     assert!(err.contains("view0.png"), "{err}");
 }
 
 #[test]
 fn a_scene_without_views() {
-    let s = room("no-views");
-    edit_scene(&s, |v| v["views"] = serde_json::json!([]));
-    let err = fails(&s, &[]);
+    let tmp = room("no-views");
+    let s = tmp.path();
+    edit_scene(s, |v| v["views"] = serde_json::json!([]));
+    let err = fails(s, &[]);
     assert!(err.contains("no views"), "{err}");
 }
 
 #[test]
 fn a_camera_that_sees_nothing() {
-    let s = room("looks-away");
-    edit_scene(&s, |v| {
+    let tmp = room("looks-away");
+    let s = tmp.path();
+    edit_scene(s, |v| {
         v["views"][0]["camera"]["position"] = serde_json::json!([2.8, 1.4, 10.5]);
         v["views"][0]["camera"]["look_at"] = serde_json::json!([2.8, 1.4, 14.5]);
     });
-    let err = fails(&s, &["--refit-rounds", "0"]);
+    let err = fails(s, &["--refit-rounds", "0"]);
     assert!(err.contains("0 photo pixels agree with the model"), "{err}");
 }
 
 #[test]
 fn forced_graphs_naming_unknown_parts_or_graphs() {
-    let s = room("forced");
-    let err = fails(&s, &["--graph", "sofa=walnut"]);
+    let tmp = room("forced");
+    let s = tmp.path();
+    let err = fails(s, &["--graph", "sofa=walnut"]);
     assert!(err.contains("no part `sofa`") && err.contains("floor"), "{err}");
-    let err = fails(&s, &["--graph", "floor=no_such_graph"]);
+    let err = fails(s, &["--graph", "floor=no_such_graph"]);
     assert!(err.contains("no graph `no_such_graph`"), "{err}");
 }
 
 #[test]
 fn light_files_with_bad_radiances() {
-    let s = room("lights");
+    let tmp = room("lights");
+    let s = tmp.path();
     let path = s.join("lights.json");
     for (text, expect) in [
         (r#"{"lights":[{"name":"ceiling0","radiance_rgb":[NaN,1,1]}]}"#, "radiance_rgb"),
@@ -111,24 +117,26 @@ fn light_files_with_bad_radiances() {
         ),
     ] {
         std::fs::write(&path, text).unwrap();
-        let err = fails(&s, &["--lights", path.to_str().unwrap()]);
+        let err = fails(s, &["--lights", path.to_str().unwrap()]);
         assert!(err.contains(expect), "{text}: {err}");
     }
 }
 
 #[test]
 fn a_library_with_a_broken_graph() {
-    let s = room("library");
+    let tmp = room("library");
+    let s = tmp.path();
     let lib = s.join("room/lib");
     copy_tree(&repo().join("graphs"), &lib, &[]);
     std::fs::write(lib.join("broken.psg"), "graph broken { output albedo = ; }\n").unwrap();
-    let err = fails(&s, &["--lib", lib.to_str().unwrap()]);
+    let err = fails(s, &["--lib", lib.to_str().unwrap()]);
     assert!(err.contains("broken.psg:1:"), "{err}");
 }
 
 #[test]
 fn an_existing_output_folder_is_refused_before_any_work() {
-    let s = room("exists");
+    let tmp = room("exists");
+    let s = tmp.path();
     let existing = s.join("existing");
     std::fs::create_dir_all(&existing).unwrap();
     std::fs::write(existing.join("keep.txt"), "mine").unwrap();
@@ -144,9 +152,10 @@ fn an_existing_output_folder_is_refused_before_any_work() {
 
 #[test]
 fn resume_or_refit_only_without_an_earlier_fit() {
-    let s = room("no-previous");
+    let tmp = room("no-previous");
+    let s = tmp.path();
     for flag in ["--resume", "--refit-only"] {
-        let err = fails(&s, &[flag]);
+        let err = fails(s, &[flag]);
         assert!(err.contains("result.json") && err.contains("earlier `psc fit`"), "{flag}: {err}");
     }
 }
@@ -155,7 +164,8 @@ fn resume_or_refit_only_without_an_earlier_fit() {
 /// 10⁸×10⁸ texels used to abort on its allocation after the whole fit.
 #[test]
 fn sizes_past_the_limits_are_refused_before_any_work() {
-    let s = room("huge");
+    let tmp = room("huge");
+    let s = tmp.path();
     for (option, value) in [("--texture-size", "100000000"), ("--render-spp", "4000000000")] {
         let run = Command::new(env!("CARGO_BIN_EXE_psc"))
             .args(["fit", s.join("room").to_str().unwrap(), "--out", s.join("out").to_str().unwrap(), "--quiet"])

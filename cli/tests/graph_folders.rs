@@ -2,7 +2,7 @@
 //! two library files, exponential inlining, a 200 KB source line. Each ends with a clear
 //! result (exit 0 or 1 and a short message), never a hang or a flood.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn psc(args: &[&str], dir: &Path) -> Output {
@@ -10,25 +10,19 @@ fn psc(args: &[&str], dir: &Path) -> Output {
 }
 
 /// A fresh scratch folder per test, removed when dropped.
-struct Scratch(PathBuf);
+struct Scratch(tempfile::TempDir);
 
 impl Scratch {
     fn new(name: &str) -> Scratch {
-        let dir = std::env::temp_dir().join(format!("psc-cli-folders-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Scratch(dir)
+        Scratch(tempfile::Builder::new().prefix(&format!("psc-cli-folders-{name}-")).tempdir().unwrap())
+    }
+    fn path(&self) -> &Path {
+        self.0.path()
     }
     fn write(&self, rel: &str, text: &str) {
-        let path = self.0.join(rel);
+        let path = self.path().join(rel);
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();
         std::fs::write(path, text).unwrap();
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
     }
 }
 
@@ -47,9 +41,9 @@ fn compile_walks_a_folder_with_link_loops_once() {
     let dir = Scratch::new("loops");
     dir.write("a/x.psg", &graph("x"));
     dir.write("y.psg", &graph("y"));
-    symlink("..", dir.0.join("a/up")).unwrap();
-    symlink("../a", dir.0.join("a/again")).unwrap();
-    let out = psc(&["compile", "--lib", ".", "."], &dir.0);
+    symlink("..", dir.path().join("a/up")).unwrap();
+    symlink("../a", dir.path().join("a/again")).unwrap();
+    let out = psc(&["compile", "--lib", ".", "."], dir.path());
     let stdout = text(&out.stdout);
     assert!(out.status.success(), "{}", text(&out.stderr));
     assert!(stdout.contains("2 graphs from 2 files"), "{stdout}");
@@ -62,12 +56,12 @@ fn bake_refuses_a_name_two_library_files_define_and_names_both() {
     dir.write("lib/std/empty.psg", "");
     dir.write("lib/stone/oak.psg", &graph("oak"));
     dir.write("lib/wood/oak.psg", &graph("oak"));
-    let out = psc(&["bake", "oak", "--lib", "lib", "--size", "8", "--out", "out"], &dir.0);
+    let out = psc(&["bake", "oak", "--lib", "lib", "--size", "8", "--out", "out"], dir.path());
     assert_eq!(out.status.code(), Some(1));
     let stderr = text(&out.stderr);
     assert!(stderr.contains("graph `oak` is defined in two files"), "{stderr}");
     assert!(stderr.contains("stone/oak.psg") && stderr.contains("wood/oak.psg"), "{stderr}");
-    assert!(!dir.0.join("out").exists(), "nothing is written");
+    assert!(!dir.path().join("out").exists(), "nothing is written");
 }
 
 #[test]
@@ -79,7 +73,7 @@ fn compile_refuses_exponential_inlining_with_a_located_error() {
     }
     src += "graph g {\n    output albedo = vec3(f40(uv.x))\n    output roughness = 0.5\n    output height = 0.0\n}\n";
     dir.write("expo.psg", &src);
-    let out = psc(&["compile", "expo.psg"], &dir.0);
+    let out = psc(&["compile", "expo.psg"], dir.path());
     assert_eq!(out.status.code(), Some(1));
     let stderr = text(&out.stderr);
     assert!(stderr.contains("budget exceeded here") && stderr.contains("expo.psg:"), "{stderr}");
@@ -90,7 +84,7 @@ fn a_diagnostic_on_a_200_kb_line_prints_a_window_of_it() {
     let dir = Scratch::new("long");
     let src = format!("graph g {{\n    output albedo = vec3({}fmb(uv))\n}}\n", " ".repeat(200_000));
     dir.write("long.psg", &src);
-    let out = psc(&["compile", "long.psg"], &dir.0);
+    let out = psc(&["compile", "long.psg"], dir.path());
     assert_eq!(out.status.code(), Some(1));
     let stderr = text(&out.stderr);
     assert!(stderr.len() < 4_000, "{} bytes on stderr", stderr.len());

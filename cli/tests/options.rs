@@ -13,11 +13,8 @@ fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("psc-options-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("psc-options-test-{name}-")).tempdir().unwrap()
 }
 
 /// Runs every case in `dir` and checks the exit code, that stderr has each expected piece,
@@ -49,7 +46,8 @@ fn v(args: &[&str]) -> Vec<String> {
 
 #[test]
 fn render_options_that_make_no_sense_are_usage_errors() {
-    let dir = scratch("render");
+    let tmp = scratch("render");
+    let dir = tmp.path();
     let d = dir.to_str().unwrap();
     let png = format!("{d}/x.png");
     let folder = format!("{d}/out");
@@ -81,15 +79,15 @@ fn render_options_that_make_no_sense_are_usage_errors() {
         (v(&["render", room, "--lights", "truth", "--out", &png]), 1, vec!["truth/truth.json", "not found"]),
         (v(&["render", room, "--assign", d, "--out", &png]), 1, vec!["expected a JSON file, found a directory"]),
     ];
-    check(&dir, &cases);
-    let _ = std::fs::remove_dir_all(&dir);
+    check(dir, &cases);
 }
 
 /// Requests past the documented limits (`psc_base::limits`) are refused before anything is
 /// allocated, saying the limit and the memory the request would need.
 #[test]
 fn requests_past_the_limits_are_refused_at_once() {
-    let dir = scratch("limits");
+    let tmp = scratch("limits");
+    let dir = tmp.path();
     let d = dir.to_str().unwrap();
     let png = format!("{d}/x.png");
     let cam = format!("{d}/cam.json");
@@ -149,13 +147,13 @@ fn requests_past_the_limits_are_refused_at_once() {
             vec!["--size:", "the limit is 67,108,864 texels"],
         ),
     ];
-    check(&dir, &cases);
-    let _ = std::fs::remove_dir_all(&dir);
+    check(dir, &cases);
 }
 
 #[test]
 fn library_and_bake_options_that_make_no_sense_are_usage_errors() {
-    let dir = scratch("library");
+    let tmp = scratch("library");
+    let dir = tmp.path();
     let d = dir.to_str().unwrap();
     let file = format!("{d}/a_file.txt");
     std::fs::write(&file, "not a folder").unwrap();
@@ -187,6 +185,5 @@ fn library_and_bake_options_that_make_no_sense_are_usage_errors() {
             vec!["contradicts"],
         ),
     ];
-    check(&dir, &cases);
-    let _ = std::fs::remove_dir_all(&dir);
+    check(dir, &cases);
 }

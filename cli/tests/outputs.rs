@@ -2,7 +2,7 @@
 //! an existing folder is refused unless `--force`, and then replaced whole (never a mix of old
 //! and new files); a bake that fails part-way leaves nothing, not even temporaries.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn psc(args: &[&str]) -> Output {
@@ -13,11 +13,8 @@ fn psc(args: &[&str]) -> Output {
         .expect("psc runs")
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("psc-outputs-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("psc-outputs-test-{name}-")).tempdir().unwrap()
 }
 
 fn names(dir: &Path) -> Vec<String> {
@@ -34,7 +31,8 @@ fn stderr(o: &Output) -> String {
 
 #[test]
 fn an_existing_bake_folder_is_refused_or_replaced_whole() {
-    let dir = scratch("force");
+    let tmp = scratch("force");
+    let dir = tmp.path();
     let out = dir.join("maps");
     let o = psc(&["bake", "knit", "--size", "8", "--random", "1", "--out", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -53,13 +51,13 @@ fn an_existing_bake_folder_is_refused_or_replaced_whole() {
     assert!(o.status.success(), "{}", stderr(&o));
     let now = names(&out);
     assert!(now.iter().all(|n| n.starts_with("plaster_")), "old files left beside new ones: {now:?}");
-    assert_eq!(names(&dir), ["maps"], "no temporaries beside the output");
-    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(names(dir), ["maps"], "no temporaries beside the output");
 }
 
 #[test]
 fn a_bake_that_fails_part_way_leaves_nothing() {
-    let dir = scratch("partial");
+    let tmp = scratch("partial");
+    let dir = tmp.path();
     // At its default the graph is finite; a random variant with `blow = 1` gives an infinite
     // height, which the bake refuses after the first maps were written.
     let graph = dir.join("fragile.psg");
@@ -78,6 +76,5 @@ fn a_bake_that_fails_part_way_leaves_nothing() {
     assert!(stderr(&o).contains("fragile_random") && stderr(&o).contains("non-finite"), "{}", stderr(&o));
     assert!(stderr(&o).contains("bake: 10% (1/9"), "the defaults were baked and written first: {}", stderr(&o));
     assert!(!out.exists(), "a failed bake left {:?}", names(&out));
-    assert_eq!(names(&dir), ["fragile.psg"], "temporaries left behind");
-    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(names(dir), ["fragile.psg"], "temporaries left behind");
 }

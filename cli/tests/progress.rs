@@ -17,9 +17,8 @@ fn psc(args: &[&str]) -> Output {
 
 #[test]
 fn long_commands_log_their_stages_as_lines() {
-    let dir = std::env::temp_dir().join(format!("psc-progress-test-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::Builder::new().prefix("psc-progress-test-").tempdir().unwrap();
+    let dir = tmp.path();
 
     let maps = dir.join("maps");
     let out = psc(&["bake", "knit", "--size", "8", "--random", "29", "--out", maps.to_str().unwrap()]);
@@ -45,5 +44,4 @@ fn long_commands_log_their_stages_as_lines() {
         psc(&["render", "examples/room", "--spp", "1", "--size", "8x6", "--quiet", "--out", quiet.to_str().unwrap()]);
     let log = String::from_utf8_lossy(&out.stderr);
     assert!(!log.contains("started") && !log.contains("done in"), "--quiet still logged:\n{log}");
-    let _ = std::fs::remove_dir_all(&dir);
 }

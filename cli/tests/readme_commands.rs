@@ -102,9 +102,8 @@ fn example_graph() -> String {
 
 #[test]
 fn every_command_in_the_readme_files_works() {
-    let work = std::env::temp_dir().join(format!("psc-readme-commands-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&work);
-    std::fs::create_dir_all(&work).unwrap();
+    let tmp = tempfile::Builder::new().prefix("psc-readme-commands-").tempdir().unwrap();
+    let work = tmp.path();
     std::os::unix::fs::symlink(repo().join("examples"), work.join("examples")).unwrap();
     std::fs::write(work.join("my_plaster.psg"), example_graph()).unwrap();
 
@@ -152,7 +151,7 @@ fn every_command_in_the_readme_files_works() {
                     args[i + 1] = "2".into();
                 }
             }
-            let out = Command::new(env!("CARGO_BIN_EXE_psc")).args(&args).current_dir(&work).output().unwrap();
+            let out = Command::new(env!("CARGO_BIN_EXE_psc")).args(&args).current_dir(work).output().unwrap();
             ran += 1;
             if !out.status.success() {
                 failures.push(format!(
@@ -169,7 +168,6 @@ fn every_command_in_the_readme_files_works() {
             }
         }
     }
-    let _ = std::fs::remove_dir_all(&work);
     assert!(failures.is_empty(), "README commands that fail:\n{}", failures.join("\n"));
     assert!(ran >= 4, "only {ran} commands found: is the extraction still right?");
 }

@@ -28,7 +28,6 @@ fn text(o: &Output) -> String {
 /// The example room with every pixel of its photo and label image repeated 2×2, in `dir`.
 fn doubled_example(dir: &Path) -> PathBuf {
     let scene = dir.join("room");
-    let _ = std::fs::remove_dir_all(&scene);
     copy_tree(&repo().join("examples/room"), &scene, &[]);
     for name in ["views/view0.png", "views/view0_parts.png"] {
         let path = scene.join(name);
@@ -39,17 +38,16 @@ fn doubled_example(dir: &Path) -> PathBuf {
     scene
 }
 
-fn scratch(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("psc-working-raster-{test}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(test: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("psc-working-raster-{test}-")).tempdir().unwrap()
 }
 
 #[test]
 fn a_doubled_photo_observed_within_the_originals_pixels_is_the_original() {
-    let dir = scratch("observe");
+    let tmp = scratch("observe");
+    let dir = tmp.path();
     let original = Scene::load(&repo().join("examples/room")).unwrap();
-    let doubled = Scene::load(&doubled_example(&dir)).unwrap();
+    let doubled = Scene::load(&doubled_example(dir)).unwrap();
     let (w, h) = (original.views[0].width, original.views[0].height);
     assert_eq!((doubled.views[0].width, doubled.views[0].height), (2 * w, 2 * h));
     let observe = |scene: &Scene, max_pixels: usize| {
@@ -78,13 +76,13 @@ fn a_doubled_photo_observed_within_the_originals_pixels_is_the_original() {
     // Within a budget of the doubled photo's own pixels it is observed as it is.
     let full = observe(&doubled, 4 * w * h);
     assert!(full.raster.is_identity() && full.photo.width == 2 * w);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn a_fit_at_a_working_raster_renders_and_reports_at_it() {
-    let dir = scratch("fit");
-    let scene = doubled_example(&dir);
+    let tmp = scratch("fit");
+    let dir = tmp.path();
+    let scene = doubled_example(dir);
     let out = dir.join("fit");
     let original = Scene::load(&repo().join("examples/room")).unwrap();
     let (w, h) = (original.views[0].width, original.views[0].height);
@@ -123,12 +121,12 @@ fn a_fit_at_a_working_raster_renders_and_reports_at_it() {
     let (photo_crops, render_crops) =
         (html.matches("alt=\"photo crop\"").count(), html.matches("alt=\"render crop\"").count());
     assert!(photo_crops >= 7 && render_crops == photo_crops, "{photo_crops} photo crops, {render_crops} render crops");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn a_budget_too_small_to_fit_at_is_refused_before_any_work() {
-    let out = scratch("refused").join("fit");
+    let tmp = scratch("refused");
+    let out = tmp.path().join("fit");
     for (budget, says) in [("100", "too few to fit a room at"), ("16383", "at least 16384"), ("lots", "invalid")] {
         let o = Command::new(env!("CARGO_BIN_EXE_psc"))
             .args(["fit", repo().join("examples/room").to_str().unwrap(), "--out", out.to_str().unwrap()])

@@ -8,26 +8,20 @@ use std::path::{Path, PathBuf};
 use psc_compiler::{compile_files, find_sources, Options};
 
 /// A fresh folder under the system temp dir, removed when dropped.
-struct Scratch(PathBuf);
+struct Scratch(tempfile::TempDir);
 
 impl Scratch {
     fn new(name: &str) -> Scratch {
-        let dir = std::env::temp_dir().join(format!("psc-hostile-{name}-{}", std::process::id()));
-        let _ = fs::remove_dir_all(&dir);
-        fs::create_dir_all(&dir).unwrap();
-        Scratch(dir)
+        Scratch(tempfile::Builder::new().prefix(&format!("psc-hostile-{name}-")).tempdir().unwrap())
+    }
+    fn path(&self) -> &Path {
+        self.0.path()
     }
     fn write(&self, rel: &str, text: &str) -> PathBuf {
-        let path = self.0.join(rel);
+        let path = self.path().join(rel);
         fs::create_dir_all(path.parent().unwrap()).unwrap();
         fs::write(&path, text).unwrap();
         path
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = fs::remove_dir_all(&self.0);
     }
 }
 
@@ -47,14 +41,14 @@ fn a_graphs_folder_with_link_loops_compiles_each_file_once() {
     dir.write("a/x.psg", &graph("x"));
     dir.write("b/y.psg", &graph("y"));
     dir.write("top.psg", &graph("top"));
-    symlink("..", dir.0.join("a/up")).unwrap();
-    symlink("../a", dir.0.join("a/again")).unwrap();
-    symlink("../b", dir.0.join("a/b_again")).unwrap();
-    symlink("top.psg", dir.0.join("top_link.psg")).unwrap();
-    let files = find_sources(&dir.0).unwrap();
-    let names: Vec<_> = files.iter().map(|f| f.strip_prefix(&dir.0).unwrap().to_path_buf()).collect();
+    symlink("..", dir.path().join("a/up")).unwrap();
+    symlink("../a", dir.path().join("a/again")).unwrap();
+    symlink("../b", dir.path().join("a/b_again")).unwrap();
+    symlink("top.psg", dir.path().join("top_link.psg")).unwrap();
+    let files = find_sources(dir.path()).unwrap();
+    let names: Vec<_> = files.iter().map(|f| f.strip_prefix(dir.path()).unwrap().to_path_buf()).collect();
     assert_eq!(names, ["a/x.psg", "b/y.psg", "top.psg"].map(PathBuf::from));
-    let out = compile_files(&files, &options(&dir.0));
+    let out = compile_files(&files, &options(dir.path()));
     assert!(!out.has_errors(), "{}", out.render_diagnostics());
     let mut graphs: Vec<_> = out.graphs.iter().map(|g| g.info.name.as_str()).collect();
     graphs.sort();
@@ -65,8 +59,8 @@ fn a_graphs_folder_with_link_loops_compiles_each_file_once() {
 fn one_file_given_twice_is_compiled_once() {
     let dir = Scratch::new("twice");
     let path = dir.write("g.psg", &graph("g"));
-    let again = dir.0.join(".").join("g.psg");
-    let out = compile_files(&[path.clone(), again, path], &options(&dir.0));
+    let again = dir.path().join(".").join("g.psg");
+    let out = compile_files(&[path.clone(), again, path], &options(dir.path()));
     assert!(!out.has_errors(), "{}", out.render_diagnostics());
     assert_eq!(out.graphs.len(), 1);
     assert_eq!(out.files.len(), 3);
@@ -78,7 +72,7 @@ fn one_graph_name_in_two_files_is_an_error_naming_both() {
     let dir = Scratch::new("clash");
     let a = dir.write("stone/oak.psg", &graph("oak"));
     let b = dir.write("wood/oak.psg", &format!("{}\n{}", graph("pine"), graph("oak")));
-    let out = compile_files(&[a.clone(), b.clone()], &options(&dir.0));
+    let out = compile_files(&[a.clone(), b.clone()], &options(dir.path()));
     assert!(out.has_errors());
     let text = out.render_diagnostics();
     assert!(text.contains("graph `oak` is defined in two files"), "{text}");
@@ -88,7 +82,7 @@ fn one_graph_name_in_two_files_is_an_error_naming_both() {
     assert_eq!(out.files, vec![(a, true), (b, false)]);
     // Unique names across the same two files are fine.
     let c = dir.write("wood/pine.psg", &graph("birch"));
-    let out = compile_files(&[c, dir.0.join("stone/oak.psg")], &options(&dir.0));
+    let out = compile_files(&[c, dir.path().join("stone/oak.psg")], &options(dir.path()));
     assert!(!out.has_errors(), "{}", out.render_diagnostics());
 }
 
@@ -109,7 +103,7 @@ fn exponential_inlining_fails_fast_at_a_call_with_the_graph_call_named() {
     let twice = |k: usize| format!("f{}(x) + f{}(x * 1.1)", k - 1, k - 1);
     // Fine at depth 10 (2^10 calls).
     let small = dir.write("small.psg", &nested_calls(10, twice));
-    let out = compile_files(&[small], &options(&dir.0));
+    let out = compile_files(&[small], &options(dir.path()));
     assert!(!out.has_errors(), "{}", out.render_diagnostics());
     let work = out.graphs[0].stats.lowering_work;
     assert!(work > 1 << 10 && work < psc_compiler::lower::MAX_LOWERING_WORK, "{work}");
@@ -118,7 +112,7 @@ fn exponential_inlining_fails_fast_at_a_call_with_the_graph_call_named() {
     let nested = |k: usize| format!("f{}(f{}(x))", k - 1, k - 1);
     for (name, body) in [("adds", &twice as &dyn Fn(usize) -> String), ("no_nodes", &nested)] {
         let path = dir.write(&format!("{name}.psg"), &nested_calls(40, body));
-        let out = compile_files(std::slice::from_ref(&path), &options(&dir.0));
+        let out = compile_files(std::slice::from_ref(&path), &options(dir.path()));
         assert!(out.graphs.is_empty());
         let text = out.render_diagnostics();
         assert!(text.contains("budget exceeded here"), "{name}: {text}");
@@ -137,7 +131,7 @@ fn nested_loops_run_out_of_budget_instead_of_running_for_hours() {
     let dir = Scratch::new("loops3");
     let src = "fn busy(x: float) -> float {\n    var acc = x;\n    for i in 0..1000 {\n        for j in 0..1000 {\n            for k in 0..1000 {\n                acc = max(acc, x);\n            }\n        }\n    }\n    acc\n}\ngraph g {\n    output albedo = vec3(busy(uv.x))\n    output roughness = 0.5\n    output height = 0.0\n}\n";
     let path = dir.write("loops.psg", src);
-    let out = compile_files(&[path], &options(&dir.0));
+    let out = compile_files(&[path], &options(dir.path()));
     let text = out.render_diagnostics();
     assert!(out.has_errors() && text.contains("budget exceeded here"), "{text}");
 }
@@ -155,7 +149,7 @@ fn diagnostics_on_a_200_kb_line_stay_small() {
     ];
     for (k, src) in cases.iter().enumerate() {
         let path = dir.write(&format!("long{k}.psg"), src);
-        let out = compile_files(&[path], &options(&dir.0));
+        let out = compile_files(&[path], &options(dir.path()));
         assert!(out.has_errors(), "case {k}");
         let text = out.render_diagnostics();
         assert!(text.len() < 2_000, "case {k}: {} bytes of diagnostics", text.len());

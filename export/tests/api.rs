@@ -15,11 +15,8 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("psc-export-api-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("psc-export-api-{name}-")).tempdir().unwrap()
 }
 
 /// The example room, a one-graph library (homogeneous) and an assignment of it to the floor
@@ -45,7 +42,8 @@ fn inputs() -> (Scene, Library, Assignment, LightRadiances) {
 #[test]
 fn refused_inputs_leave_nothing() {
     let (scene, library, assignment, lights) = inputs();
-    let dir = scratch("refused");
+    let tmp = scratch("refused");
+    let dir = tmp.path();
     let dest = dir.join("out");
     let options = ExportOptions { texture_size: 8 };
 
@@ -68,15 +66,15 @@ fn refused_inputs_leave_nothing() {
         .unwrap_err();
     assert!(e.to_string().contains("texture size"), "{e}");
 
-    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let left: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert!(left.is_empty(), "left behind: {left:?}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn the_same_inputs_give_the_same_bytes() {
     let (scene, library, assignment, lights) = inputs();
-    let dir = scratch("determinism");
+    let tmp = scratch("determinism");
+    let dir = tmp.path();
     let options = ExportOptions { texture_size: 16 };
     let a = export(&dir.join("a"), Replace::No, &scene, &library, &assignment, &lights, &options).unwrap();
     let b = export(&dir.join("b"), Replace::No, &scene, &library, &assignment, &lights, &options).unwrap();
@@ -90,5 +88,4 @@ fn the_same_inputs_give_the_same_bytes() {
     }
     assert!(a.files.iter().any(|f| f == Path::new("scene.gltf")));
     assert!(a.files.iter().any(|f| f == Path::new("scene_mitsuba.xml")));
-    let _ = std::fs::remove_dir_all(&dir);
 }

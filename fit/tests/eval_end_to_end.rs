@@ -20,12 +20,9 @@ fn library() -> &'static Library {
     LIB.get_or_init(|| Library::load(&default_library_root()).expect("the library compiles"))
 }
 
-/// A fresh, empty folder for one test.
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("psc-eval-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh, empty folder for one test, removed when the guard is dropped.
+fn temp_dir(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("psc-eval-test-{name}-")).tempdir().unwrap()
 }
 
 fn truth_json(scene: &Path) -> serde_json::Value {
@@ -90,8 +87,9 @@ fn listing(dir: &Path) -> Vec<PathBuf> {
 
 #[test]
 fn true_materials_beat_pixel_median_on_the_true_geometry() {
-    let dir = temp_dir("oracle");
-    let fit = write_fit(&dir, &scene());
+    let tmp = temp_dir("oracle");
+    let dir = tmp.path();
+    let fit = write_fit(dir, &scene());
     let opts = quick(&[Method::Oracle, Method::PixelMedian], &[ViewKind::Input], &[Geometry::Truth], 16);
     let e = run(&scene(), &fit, &opts).unwrap();
     let oracle = e.row(Geometry::Truth, ViewKind::Input, Method::Oracle).unwrap();
@@ -101,13 +99,13 @@ fn true_materials_beat_pixel_median_on_the_true_geometry() {
     assert!(oracle.rmse < 0.5 * median.rmse, "oracle {} vs pixel median {}", oracle.rmse, median.rmse);
     assert!(oracle.mean_colour < 0.25 * median.mean_colour, "{oracle:?} vs {median:?}");
     assert!(oracle.ssim > median.ssim);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn every_row_image_and_render_is_written_whole() {
-    let dir = temp_dir("outputs");
-    let fit = write_fit(&dir, &scene());
+    let tmp = temp_dir("outputs");
+    let dir = tmp.path();
+    let fit = write_fit(dir, &scene());
     let lights = std::fs::read_to_string(&fit.lights).unwrap();
     let mut lights: serde_json::Value = serde_json::from_str(&lights).unwrap();
     lights["lights"][1]["radiance_rgb"] = serde_json::json!([0, 0, 0]);
@@ -160,7 +158,7 @@ fn every_row_image_and_render_is_written_whole() {
         assert!(eval_dir.join(im["render"].as_str().unwrap()).is_file(), "{im}");
     }
     assert!(!eval_dir.join("stale").exists(), "the previous folder is replaced");
-    let hidden: Vec<_> = std::fs::read_dir(&dir)
+    let hidden: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
         .filter_map(|e| e.ok())
         .filter(|e| e.file_name().to_string_lossy().starts_with('.'))
@@ -168,13 +166,13 @@ fn every_row_image_and_render_is_written_whole() {
     assert!(hidden.is_empty(), "temporaries left: {hidden:?}");
     let table = e.table();
     assert!(table.contains("fitted / pixel median") && table.contains("flat fitted"), "{table}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn results_do_not_depend_on_the_thread_count() {
-    let dir = temp_dir("threads");
-    let fit = write_fit(&dir, &scene());
+    let tmp = temp_dir("threads");
+    let dir = tmp.path();
+    let fit = write_fit(dir, &scene());
     let mut opts = quick(&[Method::FlatFitted], &[ViewKind::Input], &[Geometry::Model], 1);
     opts.threads = Some(1);
     let a = run(&scene(), &fit, &opts).unwrap();
@@ -182,15 +180,15 @@ fn results_do_not_depend_on_the_thread_count() {
     let b = run(&scene(), &fit, &opts).unwrap();
     assert_eq!(a.rows, b.rows);
     assert_eq!(a.flat_albedo, b.flat_albedo);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The fit's exposure of an input view (result.json) multiplies the renders of that view under
 /// the fit's lights, and nothing else: not the relit view on the same camera, not the oracle.
 #[test]
 fn input_views_are_rendered_at_the_fits_exposure() {
-    let dir = temp_dir("exposure");
-    let fit = write_fit(&dir, &scene());
+    let tmp = temp_dir("exposure");
+    let dir = tmp.path();
+    let fit = write_fit(dir, &scene());
     let opts = quick(&[Method::Oracle, Method::Fitted], &[ViewKind::Input, ViewKind::Relit], &[Geometry::Model], 1);
     let plain = run(&scene(), &fit, &opts).unwrap();
     let exposure = [2.0f32, 1.0, 0.5];
@@ -210,7 +208,6 @@ fn input_views_are_rendered_at_the_fits_exposure() {
     assert_eq!(compared, 4);
     let input = |e: &psc_fit::eval::Evaluation| e.row(Geometry::Model, ViewKind::Input, Method::Fitted).unwrap().rmse;
     assert!(input(&plain) != input(&exposed), "the metrics see the exposure");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Runs the evaluation expecting an error containing `needle`, and checks it wrote nothing.
@@ -224,8 +221,9 @@ fn expect_error(scene: &Path, fit: &FitFiles, opts: &EvalOptions, needle: &str) 
 
 #[test]
 fn bad_fit_files_are_clear_errors() {
-    let dir = temp_dir("bad-fit");
-    let fit = write_fit(&dir, &scene());
+    let tmp = temp_dir("bad-fit");
+    let dir = tmp.path();
+    let fit = write_fit(dir, &scene());
     let opts = quick(&[Method::PixelMedian], &[ViewKind::Input], &[Geometry::Model], 1);
     let good_lights = std::fs::read_to_string(&fit.lights).unwrap();
     let good_materials = std::fs::read_to_string(&fit.materials).unwrap();
@@ -273,12 +271,12 @@ fn bad_fit_files_are_clear_errors() {
     std::fs::remove_file(&fit.result).unwrap();
     std::fs::remove_file(&fit.lights).unwrap();
     expect_error(&scene(), &fit, &opts, "missing");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn bad_scenes_are_clear_errors() {
-    let dir = temp_dir("bad-scene");
+    let tmp = temp_dir("bad-scene");
+    let dir = tmp.path();
     let fit_dir = dir.join("fit");
     std::fs::create_dir_all(&fit_dir).unwrap();
     let fit = write_fit(&fit_dir, &scene());
@@ -301,5 +299,4 @@ fn bad_scenes_are_clear_errors() {
     copy_tree(&scene(), &no_mesh, &["scene_true.obj"]);
     let truth_opts = quick(&[Method::PixelMedian], &[ViewKind::Input], &[Geometry::Truth], 1);
     expect_error(&no_mesh, &fit, &truth_opts, "scene_true.obj");
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -96,8 +96,8 @@ fn fit_is_deterministic_across_thread_counts_and_never_reads_truth() {
     };
     assert!(scene.join("truth").is_dir(), "the original keeps its truth/ for the comparison to mean something");
     let library = Library::load(&default_library_root()).unwrap();
-    let tmp = std::env::temp_dir().join(format!("psc-fit-determinism-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
+    let scratch = tempfile::Builder::new().prefix("psc-fit-determinism-").tempdir().unwrap();
+    let tmp = scratch.path();
     let copy = tmp.join("dev_1_without_truth");
     copy_tree(&scene, &copy, &["truth"]);
     fit_into(&scene, &tmp.join("with_truth_1_thread"), 1, &library);
@@ -113,7 +113,6 @@ fn fit_is_deterministic_across_thread_counts_and_never_reads_truth() {
         assert!(x == y, "{} differs between the two fits", name.display());
     }
     eprintln!("{} files identical", a.len());
-    let _ = std::fs::remove_dir_all(&tmp);
 }
 
 #[test]
@@ -125,8 +124,8 @@ fn an_existing_output_folder_is_kept_unless_forced_and_refit_only_starts_from_it
     };
     let library = Library::load(&default_library_root()).unwrap();
     let scene = Scene::load(&scene_dir).unwrap();
-    let tmp = std::env::temp_dir().join(format!("psc-fit-existing-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
+    let scratch = tempfile::Builder::new().prefix("psc-fit-existing-").tempdir().unwrap();
+    let tmp = scratch.path();
     std::fs::create_dir_all(tmp.join("out")).unwrap();
     std::fs::write(tmp.join("out/mine.txt"), "keep me").unwrap();
     let mut options = small_options();
@@ -142,7 +141,7 @@ fn an_existing_output_folder_is_kept_unless_forced_and_refit_only_starts_from_it
     output::write(&tmp.join("out"), &scene, &library, &result, &opts).unwrap();
     assert!(!tmp.join("out/mine.txt").exists() && tmp.join("out/materials.json").is_file());
     // No temporaries left beside it.
-    let leftovers: Vec<_> = std::fs::read_dir(&tmp).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let leftovers: Vec<_> = std::fs::read_dir(tmp).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(leftovers, vec![std::ffi::OsString::from("out")]);
 
     // `--refit-only` starts from exactly what was fitted, and keeps graphs, parameters and UV.
@@ -179,7 +178,6 @@ fn an_existing_output_folder_is_kept_unless_forced_and_refit_only_starts_from_it
         .unwrap_err()
         .to_string();
     assert!(err.contains("view exposures"), "{err}");
-    let _ = std::fs::remove_dir_all(&tmp);
 }
 
 /// A scene that names no lights is fitted under the area lights the loader places on the
@@ -187,14 +185,14 @@ fn an_existing_output_folder_is_kept_unless_forced_and_refit_only_starts_from_it
 #[test]
 fn a_scene_without_lights_is_fitted_under_generated_ceiling_lights() {
     let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/room");
-    let tmp = std::env::temp_dir().join(format!("psc-fit-no-lights-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
-    copy_tree(&example, &tmp, &["truth"]);
+    let scratch = tempfile::Builder::new().prefix("psc-fit-no-lights-").tempdir().unwrap();
+    let tmp = scratch.path();
+    copy_tree(&example, tmp, &["truth"]);
     let manifest = tmp.join("scene.json");
     let mut m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
     assert!(m.as_object_mut().unwrap().remove("lights").is_some(), "the example names its lights");
     std::fs::write(&manifest, serde_json::to_string_pretty(&m).unwrap()).unwrap();
-    let scene = Scene::load(&tmp).unwrap();
+    let scene = Scene::load(tmp).unwrap();
     assert!(scene.lights_generated);
     let (lo, hi) = scene.mesh.bounds();
     let per_axis = |a: usize| (((hi[a] - lo[a]) / 3.0).round() as usize).max(1);
@@ -215,7 +213,6 @@ fn a_scene_without_lights_is_fitted_under_generated_ceiling_lights() {
         "the photo is lit by more than one of the generated lights: {:?}",
         solved.radiance
     );
-    let _ = std::fs::remove_dir_all(&tmp);
 }
 
 /// `--resume` continues a fit: every fitted part keeps its graph (unless `--graph` now forces
@@ -225,14 +222,15 @@ fn resume_continues_every_part_from_its_fitted_state() {
     let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/room");
     let library = Library::load(&default_library_root()).unwrap();
     let scene = Scene::load(&example).unwrap();
-    let tmp = std::env::temp_dir().join(format!("psc-fit-resume-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&tmp);
+    let scratch = tempfile::Builder::new().prefix("psc-fit-resume-").tempdir().unwrap();
+    // A child of the scratch folder: like a first fit's, the output folder does not exist yet.
+    let out = scratch.path().join("out");
     // No light rounds, in either: the losses are then of the part fits under the same lights.
     let options = FitOptions { refit_rounds: 0, ..small_options() };
     let first = fit_scene(&scene, &library, None, &options, &Silent).unwrap();
     let opts = OutputOptions { texture_size: 0, render_spp: 0, force: true, seed: 7, command: "test".into() };
-    output::write(&tmp, &scene, &library, &first, &opts).unwrap();
-    let previous = output::read_previous(&tmp).unwrap();
+    output::write(&out, &scene, &library, &first, &opts).unwrap();
+    let previous = output::read_previous(&out).unwrap();
 
     let fitted = |r: &psc_fit::pipeline::FitResult| -> Vec<(String, String, f32)> {
         r.parts
@@ -270,7 +268,6 @@ fn resume_continues_every_part_from_its_fitted_state() {
     let forced = continue_fit(&scene, &library, None, &previous, Continue::Resume, &resume_options, &Silent).unwrap();
     let part = forced.parts.iter().find(|p| &p.name == name).unwrap();
     assert_eq!((&part.graph, &part.status), (&other.to_string(), &PartStatus::Forced));
-    let _ = std::fs::remove_dir_all(&tmp);
 }
 
 /// The fit ends on a light solve applied without a re-fit, so that the path tracer sees the

@@ -6,9 +6,10 @@ use common::*;
 use psc_render::{LightRadiances, RenderOptions, Renderer, Scene};
 
 fn setup() -> (Scene, Renderer) {
-    let dir = temp_dir("determinism");
-    write_scene(&dir);
-    let scene = Scene::load(&dir).unwrap();
+    let tmp = temp_dir("determinism");
+    let dir = tmp.path();
+    write_scene(dir);
+    let scene = Scene::load(dir).unwrap();
     let mut w = Vec::new();
     let materials = scene.mtl_materials(&mut w);
     let mut radiances = LightRadiances::unit(&scene);
@@ -54,10 +55,12 @@ fn per_light_images_sum_to_the_render() {
 }
 
 /// The test room with a second, small lamp in a corner: with two lights the power-weighted
-/// light selection depends on the radiances.
-fn two_lamp_scene() -> Scene {
-    let dir = temp_dir("two-lamps");
-    write_scene(&dir);
+/// light selection depends on the radiances. The folder's guard comes along: the tests read the
+/// scene's MTL materials after this returns.
+fn two_lamp_scene() -> (tempfile::TempDir, Scene) {
+    let tmp = temp_dir("two-lamps");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::write(
         dir.join("lights/corner.obj"),
         "v 0.2 2.49 0.2\nv 0.5 2.49 0.2\nv 0.5 2.49 0.5\nv 0.2 2.49 0.5\nvn 0 -1 0\nf 1//1 2//1 3//1 4//1\n",
@@ -68,14 +71,14 @@ fn two_lamp_scene() -> Scene {
         r#"{ "name": "lamp", "mesh": "lights/lamp.obj" }, { "name": "corner", "mesh": "lights/corner.obj" }"#,
     );
     std::fs::write(dir.join("scene.json"), manifest).unwrap();
-    let scene = Scene::load(&dir).unwrap();
+    let scene = Scene::load(dir).unwrap();
     assert_eq!(scene.lights.len(), 2);
-    scene
+    (tmp, scene)
 }
 
 #[test]
 fn a_renderer_retargeted_to_new_radiances_renders_as_one_built_with_them() {
-    let scene = two_lamp_scene();
+    let (_dir, scene) = two_lamp_scene();
     let mut w = Vec::new();
     let cam = &scene.views[0].camera;
     let mut first = LightRadiances::unit(&scene);
@@ -97,7 +100,7 @@ fn a_renderer_retargeted_to_new_radiances_renders_as_one_built_with_them() {
 
 #[test]
 fn invalid_radiances_are_refused_and_change_nothing() {
-    let scene = two_lamp_scene();
+    let (_dir, scene) = two_lamp_scene();
     let mut w = Vec::new();
     let good = LightRadiances::unit(&scene);
     let mut r = Renderer::new(&scene, scene.mtl_materials(&mut w), &good).unwrap();

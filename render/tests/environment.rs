@@ -6,8 +6,9 @@ mod common;
 use common::temp_dir;
 use psc_render::{image_io, LightRadiances, RenderOptions, Renderer, Scene};
 
-fn sky_scene(sky: impl Fn(usize, usize) -> [f32; 3]) -> std::path::PathBuf {
-    let dir = temp_dir("env");
+fn sky_scene(sky: impl Fn(usize, usize) -> [f32; 3]) -> tempfile::TempDir {
+    let tmp = temp_dir("env");
+    let dir = tmp.path();
     std::fs::create_dir_all(dir.join("views")).unwrap();
     std::fs::write(
         dir.join("floor.obj"),
@@ -27,7 +28,7 @@ fn sky_scene(sky: impl Fn(usize, usize) -> [f32; 3]) -> std::path::PathBuf {
              "lights": [], "environment": { "image": "sky.exr" } }"#,
     )
     .unwrap();
-    dir
+    tmp
 }
 
 fn mean_red(dir: &std::path::Path, spp: u32) -> f32 {
@@ -43,7 +44,7 @@ fn mean_red(dir: &std::path::Path, spp: u32) -> f32 {
 #[test]
 fn uniform_sky_white_furnace() {
     let dir = sky_scene(|_, _| [2.0, 2.0, 2.0]);
-    let v = mean_red(&dir, 64);
+    let v = mean_red(dir.path(), 64);
     // albedo 0.5 × radiance 2 = 1 (the floor is 100 m wide: the horizon gap is negligible).
     assert!((v - 1.0).abs() < 0.01, "{v}");
 }
@@ -66,6 +67,6 @@ fn bright_sun_patch_is_unbiased() {
         }
     }
     let expect = 0.5 / std::f64::consts::PI * e;
-    let v = mean_red(&dir, 64) as f64;
+    let v = mean_red(dir.path(), 64) as f64;
     assert!((v / expect - 1.0).abs() < 0.03, "rendered {v}, expected {expect}");
 }

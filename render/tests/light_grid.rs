@@ -13,9 +13,10 @@ use std::f32::consts::PI;
 
 #[test]
 fn lambertian_shading_of_the_grid_matches_the_render() {
-    let dir = temp_dir("lightgrid");
-    write_scene(&dir);
-    let scene = Scene::load(&dir).unwrap();
+    let tmp = temp_dir("lightgrid");
+    let dir = tmp.path();
+    write_scene(dir);
+    let scene = Scene::load(dir).unwrap();
     let mut w = Vec::new();
     let materials = scene.mtl_materials(&mut w);
     let mut radiances = LightRadiances::unit(&scene);
@@ -65,8 +66,9 @@ fn lambertian_shading_of_the_grid_matches_the_render() {
     // not in the render the ratio was 1.049: the check sees a 5% inconsistency.
     assert!((ratio - 1.0).abs() < 0.06, "grid-shaded / rendered = {ratio}");
     // The saved format round-trips its header.
-    let out = temp_dir("lightgrid-out");
-    grid.save(&out).unwrap();
+    let out_tmp = temp_dir("lightgrid-out");
+    let out = out_tmp.path();
+    grid.save(out).unwrap();
     let header: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("lightgrid.json")).unwrap()).unwrap();
     assert_eq!(header["theta_bins"], 8);

@@ -45,9 +45,10 @@ fn round_trips() {
 
 #[test]
 fn written_radiances_read_back_for_the_scene() {
-    let dir = temp_dir("lights-rt");
-    write_scene(&dir);
-    let scene = Scene::load(&dir).unwrap();
+    let tmp = temp_dir("lights-rt");
+    let dir = tmp.path();
+    write_scene(dir);
+    let scene = Scene::load(dir).unwrap();
     let mut r = LightRadiances::unit(&scene);
     r.lights = vec![[12.5, 7.25, 0.1]];
     r.environment = [0.3, 0.2, 0.1];
@@ -101,8 +102,9 @@ fn unknown_fields_and_repeated_lights_are_refused() {
 
 #[test]
 fn a_folder_or_a_missing_file_says_which() {
-    let dir = temp_dir("lights-dir");
-    let e = LightsFile::read(&dir).unwrap_err().to_string();
+    let tmp = temp_dir("lights-dir");
+    let dir = tmp.path();
+    let e = LightsFile::read(dir).unwrap_err().to_string();
     assert!(e.contains("is a directory") && e.contains("lights file"), "{e}");
     let e = LightsFile::read(&dir.join("nope.json")).unwrap_err().to_string();
     assert!(e.contains("not found"), "{e}");
@@ -110,15 +112,16 @@ fn a_folder_or_a_missing_file_says_which() {
 
 #[test]
 fn truth_is_read_only_when_asked_for() {
-    let dir = temp_dir("lights-truth");
-    write_scene(&dir);
+    let tmp = temp_dir("lights-truth");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::create_dir_all(dir.join("truth")).unwrap();
     std::fs::write(
         dir.join("truth/truth.json"),
         r#"{"lights": [{"name": "lamp", "mesh": "x", "radiance_rgb": [7, 8, 9], "relit_radiance_rgb": [1, 1, 1]}]}"#,
     )
     .unwrap();
-    let scene = Scene::load(&dir).unwrap();
+    let scene = Scene::load(dir).unwrap();
     let mut w = Vec::new();
     let default = LightRadiances::resolve(&scene, &LightsSource::Default, &mut w).unwrap();
     assert_eq!(default.lights, vec![[1.0; 3]]);

@@ -9,9 +9,11 @@ use psc_render::camera::Camera;
 use psc_render::{compute_light_grid, LightGridOptions, LightRadiances, RenderError, RenderOptions, Renderer, Scene};
 
 fn renderer() -> (Scene, Renderer) {
-    let dir = temp_dir("limits");
-    write_scene(&dir);
-    let scene = Scene::load(&dir).unwrap();
+    // The tests only render from memory, so the scene's folder can go when this returns.
+    let tmp = temp_dir("limits");
+    let dir = tmp.path();
+    write_scene(dir);
+    let scene = Scene::load(dir).unwrap();
     let mut w = Vec::new();
     let r = Renderer::new(&scene, scene.mtl_materials(&mut w), &LightRadiances::unit(&scene)).unwrap();
     (scene, r)
@@ -104,33 +106,36 @@ fn load_err(dir: &std::path::Path) -> RenderError {
 
 #[test]
 fn photos_and_labels_with_huge_headers_are_refused_naming_the_file() {
-    let dir = temp_dir("huge-photo");
-    write_scene(&dir);
+    let tmp = temp_dir("huge-photo");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::write(dir.join("views/view0.png"), lying_png(100_000, 100_000, 2)).unwrap();
     // Without labels too: the photo alone is checked.
     let manifest = std::fs::read_to_string(dir.join("scene.json")).unwrap();
     std::fs::write(dir.join("scene.json"), manifest.replace(r#""parts": "views/view0_parts.png","#, "")).unwrap();
-    let e = load_err(&dir).to_string();
+    let e = load_err(dir).to_string();
     assert!(e.contains("view0.png") && e.contains("100000x100000") && e.contains("67,108,864"), "{e}");
 
-    let dir = temp_dir("huge-labels");
-    write_scene(&dir);
+    let tmp = temp_dir("huge-labels");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::write(dir.join("views/view0_parts.png"), lying_png(100_000, 100_000, 0)).unwrap();
-    let e = load_err(&dir).to_string();
+    let e = load_err(dir).to_string();
     assert!(e.contains("view0_parts.png") && e.contains("67,108,864"), "{e}");
 }
 
 #[test]
 fn a_truncated_photo_is_an_error_naming_the_file() {
-    let dir = temp_dir("truncated-photo");
-    write_scene(&dir);
+    let tmp = temp_dir("truncated-photo");
+    let dir = tmp.path();
+    write_scene(dir);
     let p = dir.join("views/view0.png");
     let bytes = std::fs::read(&p).unwrap();
     std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
-    let e = load_err(&dir).to_string();
+    let e = load_err(dir).to_string();
     assert!(e.contains("view0.png"), "{e}");
     // Same for a lying header with a small size but no pixel data.
     std::fs::write(&p, lying_png(W as u32, H as u32, 2)).unwrap();
-    let e = load_err(&dir).to_string();
+    let e = load_err(dir).to_string();
     assert!(e.contains("view0.png"), "{e}");
 }

@@ -14,18 +14,20 @@ fn load_warnings(dir: &std::path::Path) -> (Scene, String) {
 
 #[test]
 fn mtllib_and_textures_outside_the_folder_are_not_read() {
-    let dir = temp_dir("mtl-escape");
-    write_scene(&dir);
+    let tmp = temp_dir("mtl-escape");
+    let dir = tmp.path();
+    write_scene(dir);
     let obj = room_obj(true).replace("mtllib room.mtl", "mtllib ../../../../etc/shadow");
     std::fs::write(dir.join("room.obj"), obj).unwrap();
-    let (s, w) = load_warnings(&dir);
+    let (s, w) = load_warnings(dir);
     assert!(w.contains("room.obj:1: mtllib not read") && w.contains("outside the scene folder"), "{w}");
     assert_eq!(s.mesh.part_names, ["floor", "ceiling", "walls", "crate"], "parts keep their names");
 
-    let dir = temp_dir("tex-escape");
-    write_scene(&dir);
+    let tmp = temp_dir("tex-escape");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::write(dir.join("room.mtl"), format!("{MTL}map_Kd ../../../etc/hostname\n")).unwrap();
-    let (s, w) = load_warnings(&dir);
+    let (s, w) = load_warnings(dir);
     assert!(w.contains("material 'crate'") && w.contains("outside the scene folder"), "{w}");
     assert!(s.mesh.part_mtl[3].map_kd.is_none());
 }
@@ -33,38 +35,42 @@ fn mtllib_and_textures_outside_the_folder_are_not_read() {
 #[test]
 fn every_mtl_fallback_warns_with_file_and_line() {
     // usemtl names missing from the MTL.
-    let dir = temp_dir("usemtl-missing");
-    write_scene(&dir);
+    let tmp = temp_dir("usemtl-missing");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::write(dir.join("room.mtl"), "newmtl floor\nKd 0.5 0.4 0.3\n").unwrap();
-    let (_, w) = load_warnings(&dir);
+    let (_, w) = load_warnings(dir);
     for part in ["ceiling", "walls", "crate"] {
         assert!(w.contains(&format!("usemtl '{part}' is not defined")), "{part}: {w}");
     }
     assert!(w.contains("room.obj:"), "{w}");
 
     // One bad Kd line: that material keeps the default, the others keep theirs.
-    let dir = temp_dir("bad-kd");
-    write_scene(&dir);
+    let tmp = temp_dir("bad-kd");
+    let dir = tmp.path();
+    write_scene(dir);
     let mtl = MTL.replace("Kd 0.6 0.6 0.6", "Kd 0.6 zero 0.6");
     std::fs::write(dir.join("room.mtl"), &mtl).unwrap();
-    let (s, w) = load_warnings(&dir);
+    let (s, w) = load_warnings(dir);
     assert!(w.contains("room.mtl:6: Kd of material 'walls'") && w.contains("0.6 zero 0.6"), "{w}");
     assert_eq!(s.mesh.part_mtl[0].kd, Some([0.5, 0.4, 0.3]));
     assert_eq!(s.mesh.part_mtl[2].kd, None);
     assert_eq!(s.mesh.part_mtl[3].kd, Some([0.3, 0.5, 0.2]));
 
     // Not an MTL file at all.
-    let dir = temp_dir("not-mtl");
-    write_scene(&dir);
+    let tmp = temp_dir("not-mtl");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::write(dir.join("room.mtl"), "{\"this\": \"is json\"}\n\u{0}\u{1}binary\n").unwrap();
-    let (_, w) = load_warnings(&dir);
+    let (_, w) = load_warnings(dir);
     assert!(w.contains("room.mtl: not an MTL file"), "{w}");
 
     // A missing MTL.
-    let dir = temp_dir("no-mtl");
-    write_scene(&dir);
+    let tmp = temp_dir("no-mtl");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::remove_file(dir.join("room.mtl")).unwrap();
-    let (_, w) = load_warnings(&dir);
+    let (_, w) = load_warnings(dir);
     assert!(w.contains("room.obj:1:") && w.contains("not found"), "{w}");
 }
 
@@ -76,12 +82,13 @@ fn obj_errors_carry_the_line() {
         ("f 1/77 2 3\n", "texture index '77'"),
         ("f 1 x 3\n", "vertex index 'x'"),
     ] {
-        let dir = temp_dir("obj-line");
-        write_scene(&dir);
+        let tmp = temp_dir("obj-line");
+        let dir = tmp.path();
+        write_scene(dir);
         let obj = room_obj(true);
         let line = obj.lines().count() + 1;
         std::fs::write(dir.join("room.obj"), format!("{obj}{bad}")).unwrap();
-        let msg = match Scene::load(&dir) {
+        let msg = match Scene::load(dir) {
             Ok(_) => panic!("{bad:?} should not load"),
             Err(e) => e.to_string(),
         };

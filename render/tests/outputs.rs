@@ -17,9 +17,10 @@ fn listing(dir: &std::path::Path) -> Vec<String> {
 
 #[test]
 fn folder_outputs_are_refused_when_present_and_replaced_whole_when_asked() {
-    let dir = temp_dir("outputs");
-    write_scene(&dir);
-    let scene = Scene::load(&dir).unwrap();
+    let tmp = temp_dir("outputs");
+    let dir = tmp.path();
+    write_scene(dir);
+    let scene = Scene::load(dir).unwrap();
     let mut w = Vec::new();
     let r = Renderer::new(&scene, scene.mtl_materials(&mut w), &LightRadiances::unit(&scene)).unwrap();
     let cam = &scene.views[0].camera;

@@ -38,10 +38,11 @@ impl Progress for Record {
 
 #[test]
 fn a_small_image_with_many_samples_reports_often_and_renders_the_same() {
-    let dir = temp_dir("progress");
-    write_scene(&dir);
+    let tmp = temp_dir("progress");
+    let dir = tmp.path();
+    write_scene(dir);
     let rec = Record::default();
-    let scene = Scene::load_with_progress(&dir, None, &rec).unwrap();
+    let scene = Scene::load_with_progress(dir, None, &rec).unwrap();
     {
         let stages = rec.stages.lock().unwrap();
         assert_eq!(stages[0].0, "loading room.obj");

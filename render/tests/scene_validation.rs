@@ -14,9 +14,10 @@ fn load_err(dir: &std::path::Path) -> RenderError {
 
 #[test]
 fn valid_scene_loads_with_parts_and_no_warnings() {
-    let dir = temp_dir("valid");
-    write_scene(&dir);
-    let s = Scene::load(&dir).unwrap();
+    let tmp = temp_dir("valid");
+    let dir = tmp.path();
+    write_scene(dir);
+    let s = Scene::load(dir).unwrap();
     assert_eq!(s.mesh.part_names, ["floor", "ceiling", "walls", "crate"]);
     assert_eq!(s.mesh.triangles.len(), 14);
     assert_eq!(s.views[0].width, W);
@@ -26,35 +27,39 @@ fn valid_scene_loads_with_parts_and_no_warnings() {
 
 #[test]
 fn missing_mesh_is_an_error_naming_the_file() {
-    let dir = temp_dir("nomesh");
-    write_scene(&dir);
+    let tmp = temp_dir("nomesh");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::remove_file(dir.join("room.obj")).unwrap();
-    let msg = load_err(&dir).to_string();
+    let msg = load_err(dir).to_string();
     assert!(msg.contains("room.obj") && msg.contains("not found"), "{msg}");
 }
 
 #[test]
 fn missing_light_mesh_and_photo_are_errors() {
-    let dir = temp_dir("nolight");
-    write_scene(&dir);
+    let tmp = temp_dir("nolight");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::remove_file(dir.join("lights/lamp.obj")).unwrap();
-    let msg = load_err(&dir).to_string();
+    let msg = load_err(dir).to_string();
     assert!(msg.contains("lamp.obj") && msg.contains("light 'lamp'"), "{msg}");
-    let dir = temp_dir("nophoto");
-    write_scene(&dir);
+    let tmp = temp_dir("nophoto");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::remove_file(dir.join("views/view0.png")).unwrap();
-    let msg = load_err(&dir).to_string();
+    let msg = load_err(dir).to_string();
     assert!(msg.contains("view0.png"), "{msg}");
 }
 
 #[test]
 fn malformed_json_reports_line_and_column() {
-    let dir = temp_dir("badjson");
-    write_scene(&dir);
+    let tmp = temp_dir("badjson");
+    let dir = tmp.path();
+    write_scene(dir);
     // Drop the comma after "units": the error is on line 4 (the "up" key), column 3.
     let text = manifest(GOOD_CAMERA, GOOD_LABELS).replace("\"meters\",", "\"meters\"");
     std::fs::write(dir.join("scene.json"), text).unwrap();
-    let e = load_err(&dir);
+    let e = load_err(dir);
     match &e {
         RenderError::Json { line, column, .. } => assert_eq!((*line, *column), (4, 3), "{e}"),
         other => panic!("expected a JSON error, got {other}"),
@@ -65,20 +70,22 @@ fn malformed_json_reports_line_and_column() {
 
 #[test]
 fn schema_errors_also_have_a_location() {
-    let dir = temp_dir("schema");
-    write_scene(&dir);
+    let tmp = temp_dir("schema");
+    let dir = tmp.path();
+    write_scene(dir);
     let text = manifest(GOOD_CAMERA, GOOD_LABELS).replace("\"fov_y_deg\": 60.0", "\"fov_y_deg\": \"wide\"");
     std::fs::write(dir.join("scene.json"), text).unwrap();
-    let msg = load_err(&dir).to_string();
+    let msg = load_err(dir).to_string();
     assert!(msg.contains("scene.json:") && msg.contains("invalid type"), "{msg}");
 }
 
 #[test]
 fn obj_without_uvs_warns_and_generates_them() {
-    let dir = temp_dir("nouv");
-    write_scene(&dir);
+    let tmp = temp_dir("nouv");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::write(dir.join("room.obj"), room_obj(false)).unwrap();
-    let s = Scene::load(&dir).unwrap();
+    let s = Scene::load(dir).unwrap();
     assert!(s.warnings.iter().any(|w| w.contains("no texture coordinates")), "{:?}", s.warnings);
     assert_eq!(s.mesh.generated_uv_parts.len(), 4);
     // Floor uvs are the (x, z) coordinates: they vary and span the 4 m floor.
@@ -98,43 +105,47 @@ fn obj_without_uvs_warns_and_generates_them() {
 
 #[test]
 fn label_image_of_the_wrong_size_is_an_error() {
-    let dir = temp_dir("labelsize");
-    write_scene(&dir);
-    write_labels(&dir, W + 1, H);
-    let msg = load_err(&dir).to_string();
+    let tmp = temp_dir("labelsize");
+    let dir = tmp.path();
+    write_scene(dir);
+    write_labels(dir, W + 1, H);
+    let msg = load_err(dir).to_string();
     assert!(msg.contains("41x30") && msg.contains("40x30"), "{msg}");
 }
 
 #[test]
 fn colour_label_image_is_an_error() {
-    let dir = temp_dir("labelrgb");
-    write_scene(&dir);
+    let tmp = temp_dir("labelrgb");
+    let dir = tmp.path();
+    write_scene(dir);
     psc_render::image_io::write_rgb(&dir.join("views/view0_parts.png"), W, H, &vec![[0.2; 3]; W * H]).unwrap();
-    let msg = load_err(&dir).to_string();
+    let msg = load_err(dir).to_string();
     assert!(msg.contains("grayscale"), "{msg}");
 }
 
 #[test]
 fn labels_naming_unknown_parts_warn() {
-    let dir = temp_dir("unknownpart");
-    write_scene(&dir);
+    let tmp = temp_dir("unknownpart");
+    let dir = tmp.path();
+    write_scene(dir);
     let labels = r#"{ "1": "floor", "2": "sofa" }"#;
     std::fs::write(dir.join("scene.json"), manifest(GOOD_CAMERA, labels)).unwrap();
-    let s = Scene::load(&dir).unwrap();
+    let s = Scene::load(dir).unwrap();
     assert!(s.warnings.iter().any(|w| w.contains("'sofa'") && w.contains("does not have")), "{:?}", s.warnings);
     // A label value in the image without a name also warns.
     let labels = r#"{ "1": "floor" }"#;
     std::fs::write(dir.join("scene.json"), manifest(GOOD_CAMERA, labels)).unwrap();
-    let s = Scene::load(&dir).unwrap();
+    let s = Scene::load(dir).unwrap();
     assert!(s.warnings.iter().any(|w| w.contains("[2]") && w.contains("no entry")), "{:?}", s.warnings);
 }
 
 #[test]
 fn non_integer_label_key_is_an_error() {
-    let dir = temp_dir("labelkey");
-    write_scene(&dir);
+    let tmp = temp_dir("labelkey");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::write(dir.join("scene.json"), manifest(GOOD_CAMERA, r#"{ "one": "floor" }"#)).unwrap();
-    assert!(load_err(&dir).to_string().contains("'one'"));
+    assert!(load_err(dir).to_string().contains("'one'"));
 }
 
 #[test]
@@ -150,10 +161,11 @@ fn degenerate_cameras_are_errors() {
         (r#"{ "position": [2, 1, 3], "look_at": [2, -1e20, 1], "up": [0, 1, 0], "fov_y_deg": 60 }"#, "look_at"),
     ];
     for (camera, expect) in cases {
-        let dir = temp_dir("camera");
-        write_scene(&dir);
+        let tmp = temp_dir("camera");
+        let dir = tmp.path();
+        write_scene(dir);
         std::fs::write(dir.join("scene.json"), manifest(camera, GOOD_LABELS)).unwrap();
-        let e = load_err(&dir);
+        let e = load_err(dir);
         assert!(matches!(e, RenderError::Camera { .. }), "{e}");
         let msg = e.to_string();
         assert!(msg.contains("view 'view0'") && msg.contains(expect), "{msg}");
@@ -168,34 +180,37 @@ fn files_named_by_a_scene_stay_inside_it() {
         ("/etc/passwd", "absolute paths are not allowed"),
         ("views/../../x.obj", "outside the scene folder"),
     ] {
-        let dir = temp_dir("confined");
-        write_scene(&dir);
+        let tmp = temp_dir("confined");
+        let dir = tmp.path();
+        write_scene(dir);
         let text = std::fs::read_to_string(dir.join("scene.json")).unwrap();
         std::fs::write(dir.join("scene.json"), text.replace(r#""mesh": "room.obj""#, &format!(r#""mesh": "{mesh}""#)))
             .unwrap();
-        let msg = load_err(&dir).to_string();
+        let msg = load_err(dir).to_string();
         assert!(msg.contains(expect), "{mesh}: {msg}");
     }
     #[cfg(unix)]
     {
         // A symbolic link out of the folder is refused too.
-        let dir = temp_dir("confined-link");
-        write_scene(&dir);
+        let tmp = temp_dir("confined-link");
+        let dir = tmp.path();
+        write_scene(dir);
         std::os::unix::fs::symlink("/etc/hostname", dir.join("link.obj")).unwrap();
         let text = std::fs::read_to_string(dir.join("scene.json")).unwrap();
         std::fs::write(dir.join("scene.json"), text.replace(r#""mesh": "room.obj""#, r#""mesh": "link.obj""#)).unwrap();
-        let msg = load_err(&dir).to_string();
+        let msg = load_err(dir).to_string();
         assert!(msg.contains("outside the scene folder"), "{msg}");
     }
 }
 
 #[test]
 fn a_folder_where_a_file_is_expected_is_not_called_missing() {
-    let dir = temp_dir("dir-for-file");
-    write_scene(&dir);
+    let tmp = temp_dir("dir-for-file");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::remove_file(dir.join("room.obj")).unwrap();
     std::fs::create_dir(dir.join("room.obj")).unwrap();
-    let msg = load_err(&dir).to_string();
+    let msg = load_err(dir).to_string();
     assert!(msg.contains("is a directory") && !msg.contains("not found"), "{msg}");
     let msg = match Scene::load(&dir.join("views")) {
         Ok(_) => panic!("no scene.json"),
@@ -206,40 +221,43 @@ fn a_folder_where_a_file_is_expected_is_not_called_missing() {
 
 #[test]
 fn nested_arrays_in_scene_json_name_the_field() {
-    let dir = temp_dir("nested");
-    write_scene(&dir);
+    let tmp = temp_dir("nested");
+    let dir = tmp.path();
+    write_scene(dir);
     let text = std::fs::read_to_string(dir.join("scene.json")).unwrap();
     std::fs::write(dir.join("scene.json"), text.replace(r#""mesh": "room.obj""#, r#""mesh": [["room.obj"]]"#)).unwrap();
-    let msg = load_err(&dir).to_string();
+    let msg = load_err(dir).to_string();
     assert!(msg.contains("field `mesh`") && msg.contains("sequence") && msg.contains("string"), "{msg}");
     let text = manifest(GOOD_CAMERA, GOOD_LABELS).replace(r#""fov_y_deg": 60.0"#, r#""fov_y_deg": [60]"#);
     std::fs::write(dir.join("scene.json"), text).unwrap();
-    let msg = load_err(&dir).to_string();
+    let msg = load_err(dir).to_string();
     assert!(msg.contains("views[0].camera.fov_y_deg"), "{msg}");
 }
 
 #[test]
 fn missing_mtl_keeps_part_names_with_a_warning() {
-    let dir = temp_dir("nomtl");
-    write_scene(&dir);
+    let tmp = temp_dir("nomtl");
+    let dir = tmp.path();
+    write_scene(dir);
     std::fs::remove_file(dir.join("room.mtl")).unwrap();
-    let s = Scene::load(&dir).unwrap();
+    let s = Scene::load(dir).unwrap();
     assert_eq!(s.mesh.part_names, ["floor", "ceiling", "walls", "crate"]);
     assert!(s.warnings.iter().any(|w| w.contains("room.mtl")), "{:?}", s.warnings);
 }
 
 #[test]
 fn no_lights_key_places_ceiling_lights() {
-    let dir = temp_dir("autolights");
-    write_scene(&dir);
+    let tmp = temp_dir("autolights");
+    let dir = tmp.path();
+    write_scene(dir);
     let text = manifest(GOOD_CAMERA, GOOD_LABELS)
         .replace(r#""lights": [ { "name": "lamp", "mesh": "lights/lamp.obj" } ]"#, r#""units2": 1"#);
     // unknown keys are rejected: that is a schema error with a location
     std::fs::write(dir.join("scene.json"), &text).unwrap();
-    assert!(matches!(load_err(&dir), RenderError::Json { .. }));
+    assert!(matches!(load_err(dir), RenderError::Json { .. }));
     let text = text.replace(",\n  \"units2\": 1", "");
     std::fs::write(dir.join("scene.json"), &text).unwrap();
-    let s = Scene::load(&dir).unwrap();
+    let s = Scene::load(dir).unwrap();
     assert!(s.lights_generated);
     assert!(!s.lights.is_empty());
     // every generated emitter faces down, below the ceiling

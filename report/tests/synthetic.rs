@@ -11,11 +11,8 @@ fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
 }
 
-fn temp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("psc-report-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn temp(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("psc-report-{name}-")).tempdir().unwrap()
 }
 
 fn write(path: &Path, v: &serde_json::Value) {
@@ -82,9 +79,10 @@ fn sources(html: &str) -> Vec<&str> {
 
 #[test]
 fn every_part_has_a_section_and_every_image_is_inline() {
-    let dir = temp("synthetic");
-    fit_folder(&dir);
-    let path = write_report(&dir).unwrap();
+    let tmp = temp("synthetic");
+    let dir = tmp.path();
+    fit_folder(dir);
+    let path = write_report(dir).unwrap();
     assert_eq!(path, dir.join("report.html"));
     let html = std::fs::read_to_string(&path).unwrap();
     for part in ["floor", "walls", "ghost"] {
@@ -129,38 +127,37 @@ fn every_part_has_a_section_and_every_image_is_inline() {
         }
     }
     assert!(!html.contains("http://") && !html.contains("https://"));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn a_missing_scene_leaves_the_photos_out_and_says_why() {
-    let dir = temp("noscene");
-    fit_folder(&dir);
+    let tmp = temp("noscene");
+    let dir = tmp.path();
+    fit_folder(dir);
     let elsewhere = dir.join("no-such-scene");
     let html =
-        std::fs::read_to_string(write_report_with(&dir, &ReportOptions { scene: Some(elsewhere.clone()) }).unwrap())
+        std::fs::read_to_string(write_report_with(dir, &ReportOptions { scene: Some(elsewhere.clone()) }).unwrap())
             .unwrap();
     assert!(html.contains("Photos and part labels: not available"));
     assert!(html.contains("Photo: not available"));
     // The render is still there; no crop can be made.
     assert_eq!(sources(&html).len(), 1 + 3);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn a_folder_that_is_not_a_fit_output_is_refused() {
-    let dir = temp("notfit");
-    match write_report(&dir) {
+    let tmp = temp("notfit");
+    let dir = tmp.path();
+    match write_report(dir) {
         Err(ReportError::NotAFitOutput { reason, .. }) => assert!(reason.contains("result.json"), "{reason}"),
         other => panic!("{other:?}"),
     }
     write(&dir.join("result.json"), &json!({"format": "photoscene-eval/1"}));
-    let e = write_report(&dir).unwrap_err().to_string();
+    let e = write_report(dir).unwrap_err().to_string();
     assert!(e.contains("not a `psc fit` output folder") && e.contains("photoscene-eval/1"), "{e}");
     std::fs::write(dir.join("result.json"), "{ not json").unwrap();
-    assert!(matches!(write_report(&dir), Err(ReportError::Input { .. })));
+    assert!(matches!(write_report(dir), Err(ReportError::Input { .. })));
     assert!(!dir.join("report.html").exists());
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A base64 decoder written separately from the encoder, so a wrong encoder cannot pass.

@@ -16,11 +16,8 @@ fn library() -> &'static Library {
     LIB.get_or_init(|| Library::load(&default_library_root()).unwrap_or_else(|e| panic!("{e}")))
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("psc-assign-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("psc-assign-test-{name}-")).tempdir().unwrap()
 }
 
 fn example_room() -> PathBuf {
@@ -45,7 +42,8 @@ fn written_assignments_read_back_equal_with_the_same_parameters() {
         part.roughness_scale = 0.25 + k as f32 / 7.0;
         a.parts.insert(format!("part{k}"), part);
     }
-    let dir = scratch("roundtrip");
+    let tmp = scratch("roundtrip");
+    let dir = tmp.path();
     let path = dir.join("materials.json");
     std::fs::write(&path, a.to_json_string()).unwrap();
     let back = Assignment::read(&path).unwrap();
@@ -58,7 +56,6 @@ fn written_assignments_read_back_equal_with_the_same_parameters() {
         let space = ParamSpace::new(&m.graph.info);
         assert_eq!(PartMaterial::new(m.name()).with_param_values(&space, &values).unwrap().params, part.params);
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -81,7 +78,8 @@ fn the_bundled_example_binds_to_its_scene() {
 
 #[test]
 fn bad_files_name_the_file_part_and_field() {
-    let dir = scratch("bad");
+    let tmp = scratch("bad");
+    let dir = tmp.path();
     let part_names: Vec<String> = ["floor", "walls"].iter().map(|s| s.to_string()).collect();
     let cases: &[(&str, &str)] = &[
         ("{", "materials.json:1:1: EOF while parsing an object"),
@@ -150,7 +148,6 @@ fn bad_files_name_the_file_part_and_field() {
             "{text}: a refused assignment changed a binding"
         );
     }
-    let err = Assignment::read(&dir).unwrap_err().to_string();
+    let err = Assignment::read(dir).unwrap_err().to_string();
     assert!(err.contains("expected a JSON file, found a directory"), "{err}");
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -21,15 +21,10 @@ graph tinted {
 ";
 
 fn library() -> Library {
-    // One folder per call: the tests run in parallel and each removes its own.
-    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let dir = std::env::temp_dir().join(format!("psc-edit-lib-{}-{call}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("tinted.psg"), GRAPH).unwrap();
-    let lib = Library::load(&dir).unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
-    lib
+    // The library is loaded whole, so its folder can go as soon as it is read.
+    let dir = tempfile::Builder::new().prefix("psc-edit-lib-").tempdir().unwrap();
+    std::fs::write(dir.path().join("tinted.psg"), GRAPH).unwrap();
+    Library::load(dir.path()).unwrap()
 }
 
 fn assignment() -> Assignment {

@@ -13,11 +13,8 @@ fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("psc-view-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn scratch(name: &str) -> tempfile::TempDir {
+    tempfile::Builder::new().prefix(&format!("psc-view-test-{name}-")).tempdir().unwrap()
 }
 
 /// A copy of the example room (small: an OBJ, an MTL, a photo, labels, three lamps).
@@ -58,7 +55,8 @@ fn defaults_are_the_first_view_the_model_the_mtl_and_unit_lights() {
 
 #[test]
 fn size_camera_file_assignment_and_lights_file_are_applied() {
-    let dir = scratch("choices");
+    let tmp = scratch("choices");
+    let dir = tmp.path();
     let cam = dir.join("cam.json");
     std::fs::write(
         &cam,
@@ -79,7 +77,6 @@ fn size_camera_file_assignment_and_lights_file_are_applied() {
     assert_eq!(v.materials[floor].uv_transform[0][0], 2.0, "the assignment's uv_scale");
     let v = open_view(&ViewRequest { size: Some((8, 6)), ..req }, None, &NoProgress).unwrap();
     assert_eq!((v.width, v.height, v.camera.width), (8, 6, 8), "an explicit size wins");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -100,13 +97,14 @@ fn unknown_views_and_missing_truth_are_errors() {
 /// and fails, naming the truth file, exactly when a choice asks for truth.
 #[test]
 fn truth_is_read_only_when_asked_for_by_name() {
-    let dir = scratch("truth");
-    copy_room(&dir);
+    let tmp = scratch("truth");
+    let dir = tmp.path();
+    copy_room(dir);
     std::fs::create_dir_all(dir.join("truth")).unwrap();
     std::fs::write(dir.join("truth/truth.json"), "this is not JSON").unwrap();
     std::fs::write(dir.join("truth/scene_true.obj"), "v garbage\nf 1 2 3\n").unwrap();
     let req = ViewRequest {
-        scene: dir.clone(),
+        scene: dir.to_path_buf(),
         assign: Some(dir.join("materials.json")),
         lights: LightsSource::File(dir.join("lights.json")),
         ..Default::default()
@@ -121,12 +119,12 @@ fn truth_is_read_only_when_asked_for_by_name() {
         let e = open_view(&req, None, &NoProgress).err().unwrap_or_else(|| panic!("{what}: truth/ is broken"));
         assert!(e.to_string().contains("truth"), "{what}: {e}");
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn graphs_are_found_by_file_or_library_name() {
-    let dir = scratch("lookup");
+    let tmp = scratch("lookup");
+    let dir = tmp.path();
     let file = dir.join("two.psg");
     std::fs::write(
         &file,
@@ -145,10 +143,9 @@ fn graphs_are_found_by_file_or_library_name() {
     assert!(matches!(find_graph(dir.to_str().unwrap(), None, None), Err(LookupError::IsADirectory(_))));
     assert!(matches!(find_graph("no/such.psg", None, None), Err(LookupError::NoSuchFile(_))));
     // A library of one file still finds graphs by name, not "the first one".
-    let lib = scratch("lookup-lib");
+    let lib_tmp = scratch("lookup-lib");
+    let lib = lib_tmp.path();
     std::fs::copy(&file, lib.join("two.psg")).unwrap();
-    assert_eq!(find_graph("second", None, Some(&lib)).unwrap().info.name, "second");
-    assert!(matches!(find_graph("oak_planks", None, Some(&lib)), Err(LookupError::NoSuchGraph { .. })));
-    let _ = std::fs::remove_dir_all(&dir);
-    let _ = std::fs::remove_dir_all(&lib);
+    assert_eq!(find_graph("second", None, Some(lib)).unwrap().info.name, "second");
+    assert!(matches!(find_graph("oak_planks", None, Some(lib)), Err(LookupError::NoSuchGraph { .. })));
 }

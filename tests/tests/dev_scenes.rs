@@ -39,18 +39,20 @@ fn truth_choices_open_every_dev_scene() {
 #[test]
 fn default_choices_render_the_same_without_truth() {
     let Some(dir) = dev_scene("dev_1", "default_choices_render_the_same_without_truth") else { return };
-    let copy = std::env::temp_dir().join(format!("psc-dev-scene-no-truth-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&copy);
-    copy_tree(&dir, &copy, &["truth"]);
+    let tmp = tempfile::Builder::new().prefix("psc-dev-scene-no-truth-").tempdir().unwrap();
+    let copy = tmp.path();
+    copy_tree(&dir, copy, &["truth"]);
     assert!(!copy.join("truth").exists());
     let with =
         open_view(&ViewRequest { scene: dir, size: Some((24, 18)), ..Default::default() }, None, &NoProgress).unwrap();
-    let without =
-        open_view(&ViewRequest { scene: copy.clone(), size: Some((24, 18)), ..Default::default() }, None, &NoProgress)
-            .unwrap();
+    let without = open_view(
+        &ViewRequest { scene: copy.to_path_buf(), size: Some((24, 18)), ..Default::default() },
+        None,
+        &NoProgress,
+    )
+    .unwrap();
     assert_eq!(with.radiances.lights, without.radiances.lights);
     assert_eq!(render_small(&with), render_small(&without));
-    let _ = std::fs::remove_dir_all(&copy);
 }
 
 /// A missing scene is `None` on a developer's machine and a failure under CI.

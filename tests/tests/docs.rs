@@ -25,12 +25,12 @@ fn json_after(doc: &str, heading: &str) -> String {
     doc[start..end].to_string()
 }
 
-fn scratch_file(name: &str, text: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("psc-docs-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let p = dir.join(name);
+/// A file holding `text` in a fresh folder; the folder goes when the returned guard is dropped.
+fn scratch_file(name: &str, text: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::Builder::new().prefix("psc-docs-test-").tempdir().unwrap();
+    let p = dir.path().join(name);
     std::fs::write(&p, text).unwrap();
-    p
+    (dir, p)
 }
 
 #[test]
@@ -55,7 +55,7 @@ fn the_assignment_example_is_a_valid_assignment() {
 
 #[test]
 fn the_camera_example_is_a_valid_camera_file() {
-    let path = scratch_file("camera.json", &json_after(&doc(), "Camera files"));
+    let (_dir, path) = scratch_file("camera.json", &json_after(&doc(), "Camera files"));
     let cam = load_camera_file(&path).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(cam.size, Some((320, 240)));
 }
