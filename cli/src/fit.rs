@@ -56,18 +56,18 @@ pub struct Args {
     #[arg(long, value_parser = checks::parse_threads)]
     threads: Option<usize>,
     /// Random exemplars per graph for selection.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = fit_defaults().select.exemplars)]
     exemplars: usize,
     /// Graphs at the top of the selection's pattern vote that each run a start of the fit
     /// (global UV search and a short run), beside the whole-loss vote's winner; the one that
     /// reaches the lowest loss is fitted.
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u16).range(1..=16))]
+    #[arg(long, default_value_t = fit_defaults().select.contenders as u16, value_parser = clap::value_parser!(u16).range(1..=16))]
     contenders: u16,
     /// Most gradient iterations per part.
-    #[arg(long, default_value_t = 1000)]
+    #[arg(long, default_value_t = fit_defaults().fit.max_iterations)]
     iterations: u32,
     /// Most photo pixels a part is fitted on (larger parts: the window with the most usable pixels).
-    #[arg(long, default_value_t = 4096)]
+    #[arg(long, default_value_t = fit_defaults().fit_pixels)]
     fit_pixels: usize,
     /// Photos with more pixels are fitted at a working resolution within this many: averaged
     /// over blocks of the smallest whole number of pixels that brings them within it (0: always
@@ -76,7 +76,7 @@ pub struct Args {
     max_photo_pixels: usize,
     /// At most this many rounds of global light solve + albedo/roughness re-fit after the
     /// first fit (they stop early once no light or exposure moves by more than 2%).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = fit_defaults().refit_rounds)]
     refit_rounds: usize,
     /// Size of the baked maps per part (0: none).
     #[arg(long, default_value_t = 1024)]
@@ -87,6 +87,11 @@ pub struct Args {
     /// No progress output.
     #[arg(long)]
     quiet: bool,
+}
+
+/// The library's defaults, which the options' defaults show rather than repeat.
+fn fit_defaults() -> FitOptions {
+    FitOptions::default()
 }
 
 /// Fewer working pixels leave too few for a part's texture (a fit wants 500 usable pixels of a
