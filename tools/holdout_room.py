@@ -185,6 +185,16 @@ def redraw_parts(rng, truth, pool, out, seed):
         part["texture_info"] = {"generator": kind, "holdout_seed": seed}
 
 
+def drop_unused_textures(truth, work):
+    """The base's textures of the parts redrawn are not this room's: left in truth/textures,
+    they would pass for part of its truth."""
+    used = {os.path.basename(p["albedo"]["texture"]) for p in truth["parts"] if "texture" in p["albedo"]}
+    folder = os.path.join(work, "truth", "textures")
+    for f in os.listdir(folder):
+        if f not in used:
+            os.remove(os.path.join(folder, f))
+
+
 def redraw_lights(rng, truth):
     for light in truth["lights"]:
         tint = rng.dirichlet([20, 20, 20]) * 3
@@ -203,6 +213,7 @@ def build(args, rng, pool, work):
     truth["split"] = "holdout"
     truth["renderer"] = f"psc render, truth materials on the true geometry, {args.spp} spp (tools/holdout_room.py)"
     redraw_parts(rng, truth, pool, work, args.seed)
+    drop_unused_textures(truth, work)
     redraw_lights(rng, truth)
     with open(truth_path, "w") as f:
         json.dump(truth, f, indent=1)
