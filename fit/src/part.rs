@@ -208,8 +208,8 @@ pub(crate) fn fit_one_part(
             // one part of 108 changed, dev_1's plain floor (a painted wall before).
             let flat_index = index_of(HOMOGENEOUS);
             let flat_settings = FitSettings { starts: 1, start_iterations: 0, global_uv_search: false, ..settings };
-            let flat_start = flat_state(&library.materials[flat_index], colour, DEFAULT_ROUGHNESS);
-            let flat = fit_part(&problem_of(&library.materials[flat_index]), &[flat_start], &flat_settings, Free::ALL)?;
+            let flat_start = flat_state(homogeneous, colour, DEFAULT_ROUGHNESS);
+            let flat = fit_part(&problem_of(homogeneous), &[flat_start], &flat_settings, Free::ALL)?;
             if flat.loss.total < contest.fit.loss.total {
                 (flat_index, flat)
             } else {
