@@ -121,7 +121,7 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     eprintln!("wrote {}", eval_dir.display());
     // The fit's report gains the evaluation tables.
     if args.out.join("report.html").is_file() && eval_dir == args.out.join("eval") {
-        let options = psc_report::ReportOptions { scene: Some(args.scene.clone()) };
+        let options = psc_report::ReportOptions { scene: Some(args.scene.clone()), ..Default::default() };
         let report = psc_report::write_report_with(&args.out, &options).map_err(|e| Failure(e.to_string()))?;
         eprintln!("updated {}", report.display());
     }

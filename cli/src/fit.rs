@@ -230,7 +230,8 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
         None
     };
     progress.stage("report", 1);
-    let report_options = psc_report::ReportOptions { scene: Some(args.scene.clone()) };
+    let report_options =
+        psc_report::ReportOptions { scene: Some(args.scene.clone()), shown_as: Some(args.out.clone()) };
     psc_report::write_report_with(staged.path(), &report_options).map_err(|e| Failure(e.to_string()))?;
     staged.commit().map_err(|e| Failure(e.to_string()))?;
     progress.done();

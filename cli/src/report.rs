@@ -18,7 +18,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<ExitCode, Failure> {
-    let path = write_report_with(&args.out, &ReportOptions { scene: args.scene })?;
+    let path = write_report_with(&args.out, &ReportOptions { scene: args.scene, ..Default::default() })?;
     let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
     eprintln!("wrote {} ({:.1} MB)", path.display(), bytes as f64 / 1e6);
     Ok(ExitCode::SUCCESS)

@@ -72,6 +72,12 @@ fn fitted() -> &'static Path {
 #[test]
 fn report_of_a_real_fit_is_self_contained() {
     let fit = fitted();
+    // The page `psc fit` wrote (in its staging folder, renamed into place afterwards) names the
+    // output folder, never the staging one.
+    let written_by_fit = std::fs::read_to_string(fit.join("report.html")).unwrap();
+    let out_name = fit.file_name().unwrap().to_str().unwrap();
+    assert!(written_by_fit.contains(&format!("<title>photoscene fit: {out_name}</title>")));
+    assert!(!written_by_fit.contains(".psc-tmp"), "the report names the staging folder");
     let o = psc(&["report", fit.to_str().unwrap()]);
     assert!(o.status.success(), "{}", text(&o));
     let html = std::fs::read_to_string(fit.join("report.html")).unwrap();

@@ -16,7 +16,10 @@ pub const FORMAT_PREFIX: &str = "photoscene-fit/";
 
 /// Everything the page shows, read once.
 pub struct FitFolder {
+    /// Where the files are read from.
     pub dir: PathBuf,
+    /// The path the page names the folder by (`dir` unless the report says otherwise).
+    pub shown_as: PathBuf,
     pub result: Value,
     pub parts: Vec<Part>,
     /// `lights.json`, or why it is not available.
@@ -63,17 +66,20 @@ pub fn file_stem(name: &str) -> String {
     name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect()
 }
 
+/// The JSON file at `path`; else why not (the caller names the file).
 fn read_json(path: &Path) -> Result<Value, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    serde_json::from_str(&text).map_err(|e| format!("{}: not valid JSON: {e}", path.display()))
+    let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+    serde_json::from_str(&text).map_err(|e| format!("not valid JSON: {e}"))
 }
 
-/// `path` if it is a file; else why not, for the page.
-fn optional_json(path: &Path) -> Result<Value, String> {
+/// The file `relative` of the fit folder `dir`; else why not, for the page, naming it by its
+/// path within the folder (which stays true wherever the folder is moved).
+fn optional_json(dir: &Path, relative: &str) -> Result<Value, String> {
+    let path = dir.join(relative);
     if !path.exists() {
-        return Err(format!("{} does not exist", path.display()));
+        return Err(format!("{relative} does not exist"));
     }
-    read_json(path)
+    read_json(&path).map_err(|why| format!("{relative}: {why}"))
 }
 
 impl FitFolder {
@@ -100,7 +106,7 @@ impl FitFolder {
                 message: "\"parts\" must be an array of the fitted parts".into(),
             });
         };
-        let materials = optional_json(&dir.join("materials.json"));
+        let materials = optional_json(dir, "materials.json");
         let mut parts = Vec::with_capacity(lines.len());
         for line in lines {
             let Some(name) = line.get("name").and_then(Value::as_str) else {
@@ -121,7 +127,7 @@ impl FitFolder {
             parts.push(Part {
                 name: name.to_string(),
                 summary: line.clone(),
-                detail: optional_json(&dir.join("parts").join(format!("{stem}.json"))),
+                detail: optional_json(dir, &format!("parts/{stem}.json")),
                 material,
                 maps_dir: dir.join("parts").join(stem),
             });
@@ -139,8 +145,9 @@ impl FitFolder {
         };
         Ok(FitFolder {
             dir: dir.to_path_buf(),
-            lights: optional_json(&dir.join("lights.json")),
-            eval: optional_json(&dir.join("eval").join("eval.json")),
+            shown_as: dir.to_path_buf(),
+            lights: optional_json(dir, "lights.json"),
+            eval: optional_json(dir, "eval/eval.json"),
             result,
             parts,
             scene,

@@ -58,6 +58,9 @@ pub struct ReportOptions {
     /// The scene folder with the photos, instead of the one `result.json` names (for a fit
     /// output that was moved, or made on another machine).
     pub scene: Option<PathBuf>,
+    /// The path the page names the fit output by, when the report is written before the folder
+    /// reaches its place (`psc fit` writes it into its staging folder, then renames that).
+    pub shown_as: Option<PathBuf>,
 }
 
 /// Writes `<out_dir>/report.html` for the fit output in `out_dir` (atomically: a reader sees
@@ -70,7 +73,10 @@ pub fn write_report(out_dir: &Path) -> Result<PathBuf, ReportError> {
 
 /// [`write_report`] with options.
 pub fn write_report_with(out_dir: &Path, options: &ReportOptions) -> Result<PathBuf, ReportError> {
-    let fit = FitFolder::read(out_dir, options.scene.as_deref())?;
+    let mut fit = FitFolder::read(out_dir, options.scene.as_deref())?;
+    if let Some(shown_as) = &options.shown_as {
+        fit.shown_as = shown_as.clone();
+    }
     let text = page::render(&fit);
     let path = out_dir.join("report.html");
     psc_base::output::write_atomic(&path, text.as_bytes())

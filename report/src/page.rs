@@ -40,7 +40,7 @@ b.setAttribute('data-external-resources',performance.getEntriesByType('resource'
 
 /// The whole HTML text of the report.
 pub fn render(fit: &FitFolder) -> String {
-    let title = format!("photoscene fit: {}", fit.dir.file_name().and_then(|n| n.to_str()).unwrap_or("output"));
+    let title = format!("photoscene fit: {}", fit.shown_as.file_name().and_then(|n| n.to_str()).unwrap_or("output"));
     let images = ViewImages::read(fit);
     let mut body = String::new();
     let _ = write!(body, "<h1>{}</h1>", esc(&title));
@@ -133,7 +133,7 @@ fn summary(fit: &FitFolder) -> String {
     let scene = fit.scene_dir.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| "—".into());
     let mut s = format!(
         "<p>Fit output <code>{}</code> of the scene <code>{}</code>, made by photoscene {}.</p>",
-        esc(&fit.dir.display().to_string()),
+        esc(&fit.shown_as.display().to_string()),
         esc(&scene),
         esc(&get("version"))
     );

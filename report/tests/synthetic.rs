@@ -1,6 +1,7 @@
 //! The report of a hand-made fit folder over the bundled example room (its photo and labels):
 //! every part gets a section, every image is a `data:` URI that decodes, pieces the folder lacks
-//! are said to be "not available", and a folder that is not a fit output is refused.
+//! are said to be "not available", the page names the folder it is shown as, and a folder that
+//! is not a fit output is refused.
 
 use std::path::{Path, PathBuf};
 
@@ -135,13 +136,34 @@ fn a_missing_scene_leaves_the_photos_out_and_says_why() {
     let dir = tmp.path();
     fit_folder(dir);
     let elsewhere = dir.join("no-such-scene");
-    let html =
-        std::fs::read_to_string(write_report_with(dir, &ReportOptions { scene: Some(elsewhere.clone()) }).unwrap())
-            .unwrap();
+    let html = std::fs::read_to_string(
+        write_report_with(dir, &ReportOptions { scene: Some(elsewhere.clone()), ..Default::default() }).unwrap(),
+    )
+    .unwrap();
     assert!(html.contains("Photos and part labels: not available"));
     assert!(html.contains("Photo: not available"));
     // The render is still there; no crop can be made.
     assert_eq!(sources(&html).len(), 1 + 3);
+}
+
+/// `psc fit` writes the report into its staging folder before renaming it into place: the page
+/// must name the folder the user will find, and say which files are missing by their path
+/// within it, so that nothing on it names the staging folder.
+#[test]
+fn the_page_names_the_folder_it_is_shown_as() {
+    let tmp = temp("staged");
+    let dir = tmp.path().join(".staging-of-fitted");
+    fit_folder(&dir);
+    let shown_as = tmp.path().join("fitted");
+    let options = ReportOptions { shown_as: Some(shown_as.clone()), ..Default::default() };
+    let html = std::fs::read_to_string(write_report_with(&dir, &options).unwrap()).unwrap();
+    assert!(html.contains("<title>photoscene fit: fitted</title>"), "{}", &html[..400]);
+    assert!(html.contains(&shown_as.display().to_string()));
+    assert!(!html.contains(".staging-of-fitted"), "the staging folder is named");
+    assert!(html.contains("eval/eval.json does not exist"), "a missing file is named within the folder");
+    // Without the option the page names the folder it was read from.
+    let html = std::fs::read_to_string(write_report(&dir).unwrap()).unwrap();
+    assert!(html.contains("<title>photoscene fit: .staging-of-fitted</title>"));
 }
 
 #[test]
