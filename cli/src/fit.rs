@@ -79,17 +79,18 @@ pub struct Args {
     #[arg(long, default_value_t = fit_defaults().refit_rounds)]
     refit_rounds: usize,
     /// Size of the baked maps per part (0: none).
-    #[arg(long, default_value_t = 1024)]
+    #[arg(long, default_value_t = OutputOptions::default().texture_size)]
     texture_size: usize,
     /// Samples per pixel of the re-rendered input views (0: none).
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = OutputOptions::default().render_spp)]
     render_spp: u32,
     /// No progress output.
     #[arg(long)]
     quiet: bool,
 }
 
-/// The library's defaults, which the options' defaults show rather than repeat.
+/// The library's defaults, which the options' defaults show rather than repeat (the output
+/// options' likewise come from `OutputOptions::default()`).
 fn fit_defaults() -> FitOptions {
     FitOptions::default()
 }

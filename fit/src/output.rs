@@ -35,6 +35,13 @@ pub struct OutputOptions {
     pub command: String,
 }
 
+impl Default for OutputOptions {
+    /// What `psc fit` writes without options: 1024² maps, re-renders at 64 spp, seed 0.
+    fn default() -> OutputOptions {
+        OutputOptions { texture_size: 1024, render_spp: 64, force: false, seed: 0, command: String::new() }
+    }
+}
+
 fn out_err(path: &Path, e: impl std::fmt::Display) -> FitError {
     FitError::Output(format!("{}: {e}", path.display()))
 }
