@@ -85,6 +85,7 @@ fn part_json(p: &PartResult) -> Value {
         "status": p.status,
         "graph": p.graph,
         "top": p.top,
+        "flat_check": p.flat_check,
         "view": p.view,
         "view_scores": p.view_scores,
         "alignment": { "warp": p.warp, "iou_initial": p.iou.map(|x| x.0), "iou": p.iou.map(|x| x.1) },

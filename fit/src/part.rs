@@ -20,7 +20,7 @@ use crate::observe::ViewObservation;
 use crate::optim::Free;
 use crate::part_fit::{fit_contest, fit_part, FitSettings, Problem};
 use crate::pipeline::FitOptions;
-use crate::result::{PartResult, PartStatus, PartTimings, PixelCounts};
+use crate::result::{FlatCheck, PartResult, PartStatus, PartTimings, PixelCounts};
 use crate::select::select;
 use crate::targets::part_view;
 use crate::uvmap::UvTransform;
@@ -85,6 +85,7 @@ pub(crate) fn fit_one_part(
         state: flat_state(homogeneous, UNOBSERVED_ALBEDO, DEFAULT_ROUGHNESS),
         roughness_scale: 1.0,
         top: Vec::new(),
+        flat_check: None,
         view: None,
         view_index: None,
         view_scores: Vec::new(),
@@ -210,11 +211,14 @@ pub(crate) fn fit_one_part(
             let flat_settings = FitSettings { starts: 1, start_iterations: 0, global_uv_search: false, ..settings };
             let flat_start = flat_state(homogeneous, colour, DEFAULT_ROUGHNESS);
             let flat = fit_part(&problem_of(homogeneous), &[flat_start], &flat_settings, Free::ALL)?;
-            if flat.loss.total < contest.fit.loss.total {
-                (flat_index, flat)
-            } else {
-                (contenders[contest.winner], contest.fit)
-            }
+            let check = FlatCheck {
+                contest_winner: library.materials[contenders[contest.winner]].name().to_string(),
+                contest_loss: contest.fit.loss.total,
+                flat_loss: flat.loss.total,
+            };
+            let kept = if check.flat_kept() { (flat_index, flat) } else { (contenders[contest.winner], contest.fit) };
+            result.flat_check = Some(check);
+            kept
         }
         _ => {
             let graph_index = match (forced, continued) {
@@ -260,6 +264,9 @@ pub(crate) fn fit_one_part(
         (None, Some(b)) => b.top.clone(),
         (None, None) => Vec::new(),
     };
+    if let Some(b) = continued {
+        result.flat_check = b.flat_check.clone();
+    }
     result.state = fit.state;
     result.loss = fit.loss;
     let (earlier_history, earlier_iterations, earlier_candidates) =

@@ -53,6 +53,22 @@ pub struct PartTimings {
     pub fit: f64,
 }
 
+/// The check after a selected part's contest: a flat colour fitted to the same pixels against
+/// the contest's winner, by their final losses; the lower one is the part's material.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FlatCheck {
+    pub contest_winner: String,
+    pub contest_loss: f32,
+    pub flat_loss: f32,
+}
+
+impl FlatCheck {
+    /// Whether the flat colour replaced the contest's winner.
+    pub fn flat_kept(&self) -> bool {
+        self.flat_loss < self.contest_loss
+    }
+}
+
 /// The fit of one part (saved whole in `result.json`, so `--refit-only` can start from it).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct PartResult {
@@ -65,6 +81,10 @@ pub struct PartResult {
     pub roughness_scale: f32,
     /// The selection's best graphs with their votes (empty when not selected).
     pub top: Vec<Ranked>,
+    /// The flat-colour check after the selection's contest (none when not selected; absent
+    /// from the `result.json` of fits made before it was recorded).
+    #[serde(default)]
+    pub flat_check: Option<FlatCheck>,
     pub view: Option<String>,
     /// Index of the chosen view in the scene's views.
     pub view_index: Option<usize>,

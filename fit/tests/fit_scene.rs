@@ -244,6 +244,14 @@ fn resume_continues_every_part_from_its_fitted_state() {
     let resumed = continue_fit(&scene, &library, None, &previous, Continue::Resume, &resume_options, &Silent).unwrap();
     let (before, after) = (fitted(&first), fitted(&resumed));
     assert!(before.len() >= 3, "the example has textured parts: {before:?}");
+    // Every selected part records its flat-colour check, and its material is the check's
+    // lower-loss side.
+    for p in first.parts.iter().filter(|p| p.status == PartStatus::Fitted) {
+        let check = p.flat_check.as_ref().unwrap_or_else(|| panic!("{}: no flat-colour check", p.name));
+        let kept = if check.flat_kept() { "homogeneous" } else { check.contest_winner.as_str() };
+        assert_eq!(p.graph, kept, "{}: {check:?}", p.name);
+        assert_eq!(p.loss.total, check.contest_loss.min(check.flat_loss), "{}: {check:?}", p.name);
+    }
     assert_eq!(
         before.iter().map(|p| (&p.0, &p.1)).collect::<Vec<_>>(),
         after.iter().map(|p| (&p.0, &p.1)).collect::<Vec<_>>(),
@@ -256,6 +264,7 @@ fn resume_continues_every_part_from_its_fitted_state() {
             b.top.iter().map(|t| &t.graph).collect::<Vec<_>>(),
             a.top.iter().map(|t| &t.graph).collect::<Vec<_>>()
         );
+        assert_eq!(b.flat_check, a.flat_check, "{}: the check is read back from result.json", a.name);
     }
     let total = |v: &[(String, String, f32)]| v.iter().map(|p| p.2).sum::<f32>();
     println!("summed loss of the fitted parts: {:.4} → {:.4} after resuming", total(&before), total(&after));

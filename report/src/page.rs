@@ -323,8 +323,33 @@ fn selection(part: &Part, detail: &Value) -> String {
         })
         .collect();
     let mut s = table(&["#", "graph", "votes", "best exemplar loss", "loss after a start of the fit"], &rows);
-    if !top.iter().any(|t| t.get("graph").and_then(Value::as_str) == Some(chosen)) {
-        let _ = write!(s, "<p>Chosen: <b>{}</b> (not among the alternatives above).</p>", esc(chosen));
+    let check = detail.get("flat_check").filter(|c| !c.is_null());
+    let loss = |key: &str| check.and_then(|c| c.get(key)).and_then(Value::as_f64);
+    let winner = check.and_then(|c| c.get("contest_winner")).and_then(Value::as_str);
+    match (winner, loss("contest_loss"), loss("flat_loss")) {
+        (Some(winner), Some(contest), Some(flat)) if flat < contest => {
+            let _ = write!(
+                s,
+                "<p>Chosen: <b>{}</b>: a flat colour fitted to the same pixels ended below the contest's winner, \
+                 <b>{}</b> (loss {} against {}).</p>",
+                esc(chosen),
+                esc(winner),
+                num(flat),
+                num(contest)
+            );
+        }
+        (Some(_), Some(contest), Some(flat)) => {
+            let _ = write!(
+                s,
+                "<p>A flat colour fitted to the same pixels ended at loss {}, above the winner's {}.</p>",
+                num(flat),
+                num(contest)
+            );
+        }
+        _ if !top.iter().any(|t| t.get("graph").and_then(Value::as_str) == Some(chosen)) => {
+            let _ = write!(s, "<p>Chosen: <b>{}</b> (not among the alternatives above).</p>", esc(chosen));
+        }
+        _ => {}
     }
     s
 }

@@ -52,6 +52,7 @@ fn fit_folder(dir: &Path) {
         &dir.join("parts/floor.json"),
         &json!({"name": "floor", "status": "fitted", "graph": "oak_planks",
                 "top": [{"graph": "walnut", "votes": 3.0, "best_loss": 0.1}, {"graph": "oak_planks", "votes": 2.0, "best_loss": 0.05}],
+                "flat_check": {"contest_winner": "oak_planks", "contest_loss": 0.01, "flat_loss": 0.03},
                 "loss": {"total": 0.01}, "loss_curve": [0.5, 0.2, 0.1, 0.01], "iterations": 3,
                 "pixels": {"fitted": 100, "usable": 120}}),
     );
@@ -116,6 +117,7 @@ fn every_part_has_a_section_and_every_image_is_inline() {
     assert!(html.contains("psc fit examples/room &lt;&amp;&gt;"));
     // The chosen graph is marked among the alternatives, shares and fitted colours shown.
     assert!(html.contains("oak_planks ✔"));
+    assert!(html.contains("A flat colour fitted to the same pixels ended at loss 0.03000, above the winner's 0.01000."));
     assert!(html.contains("<th>share</th>") && html.contains("<td>0.7500</td>"), "the last solve's share");
     assert!(html.contains("<td>900</td>"), "the solve rounds' table");
     assert!(html.contains("<td>view1</td><td>[0.8000, 1.000, 1.250]</td>"), "the per-view exposures");
@@ -144,6 +146,29 @@ fn a_missing_scene_leaves_the_photos_out_and_says_why() {
     assert!(html.contains("Photo: not available"));
     // The render is still there; no crop can be made.
     assert_eq!(sources(&html).len(), 1 + 3);
+}
+
+/// A flat colour that ended below the contest's winner replaced it: the page says so, and by
+/// how much, rather than showing a choice from outside the table.
+#[test]
+fn a_flat_colour_kept_over_the_contests_winner_is_explained() {
+    let tmp = temp("flatkept");
+    let dir = tmp.path();
+    fit_folder(dir);
+    let floor = dir.join("parts/floor.json");
+    let mut detail: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&floor).unwrap()).unwrap();
+    detail["graph"] = json!("homogeneous");
+    detail["flat_check"] = json!({"contest_winner": "oak_planks", "contest_loss": 0.02, "flat_loss": 0.015});
+    write(&floor, &detail);
+    let mut result: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("result.json")).unwrap()).unwrap();
+    result["parts"][0]["graph"] = json!("homogeneous");
+    write(&dir.join("result.json"), &result);
+    let html = std::fs::read_to_string(write_report(dir).unwrap()).unwrap();
+    let said = "Chosen: <b>homogeneous</b>: a flat colour fitted to the same pixels ended below the contest's \
+                winner, <b>oak_planks</b> (loss 0.01500 against 0.02000).";
+    assert!(html.contains(said), "{}", &html[html.find("Graph selection").unwrap()..][..1200]);
+    assert!(!html.contains("not among the alternatives"));
 }
 
 /// `psc fit` writes the report into its staging folder before renaming it into place: the page
