@@ -133,6 +133,12 @@ impl Checker<'_> {
         }
         match self.set.lookup(self.module, &id.name) {
             Ok(Some(item @ ItemRef::Const(module, index))) => {
+                if self.const_in_progress(item) {
+                    // Lowering would expand the value forever.
+                    self.error(id.span, format!("`{}` is defined in terms of itself", id.name)).hint =
+                        Some("a constant's value may not refer back to it, directly or through other constants".into());
+                    return Typed::error();
+                }
                 let def = self.set.module(module).const_def(index);
                 return self.const_type(item, def);
             }

@@ -242,15 +242,18 @@ impl<'a> Checker<'a> {
         self.current_fn = None;
     }
 
-    /// The type of a module-level constant (memoised; cycles reported once).
+    /// Whether `item`'s type is being computed further up: a reference to it now closes a cycle.
+    fn const_in_progress(&self, item: ItemRef) -> bool {
+        matches!(self.shared.const_types.borrow().get(&item), Some(None))
+    }
+
+    /// The type of a module-level constant (memoised; a cycle is reported where a reference
+    /// closes it, by `check_name`).
     fn const_type(&mut self, item: ItemRef, def: &ast::ConstDef) -> Typed {
         if let Some(entry) = self.shared.const_types.borrow().get(&item) {
             return match entry {
                 Some((ty, konst)) => Typed::new(ty.clone(), *konst),
-                None => {
-                    // Still being computed: a cycle through constants.
-                    Typed::error()
-                }
+                None => Typed::error(),
             };
         }
         self.shared.const_types.borrow_mut().insert(item, None);
