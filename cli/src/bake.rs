@@ -3,7 +3,7 @@
 //! (EXR) maps. The graph is a `.psg` file (its first graph, or `--name`) or the name of a
 //! graph of the library.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
@@ -58,7 +58,10 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
     limits::check_count("random variants", args.random as u64, limits::MAX_VARIANTS, "variants")
         .map_err(|e| checks::over_limit("--random", e))?;
     let replace = if args.force { Replace::Yes } else { Replace::No };
-    checks::new_folder("--out", &args.out, replace)?;
+    let mut inputs: Vec<&Path> = vec![Path::new(&args.graph)];
+    inputs.extend(args.params.as_deref());
+    inputs.extend(args.lib.as_deref());
+    checks::new_folder("--out", &args.out, replace, &inputs)?;
     // Refused at once when --out exists (without --force), before compiling anything.
     let staged = StagedDir::new(&args.out, replace)?;
     let graph = find_graph(&args.graph, args.name.as_deref(), args.lib.as_deref())?;

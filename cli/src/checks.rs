@@ -32,12 +32,32 @@ pub fn folder_path(option: &str, path: &Path) -> Result<(), Usage> {
     Ok(())
 }
 
-/// `path` is to be written as a new folder: not a file, and not an existing folder unless it
-/// may be replaced (`--force`). Checked before any work; the staged write checks again.
-pub fn new_folder(option: &str, path: &Path, replace: Replace) -> Result<(), Error> {
+/// `path` is to be written as a new folder: not a file, not an existing folder unless it may
+/// be replaced (`--force`), and never a folder that is or holds one of the command's `inputs`
+/// (replacing it would delete them). Checked before any work; the staged write checks again.
+pub fn new_folder(option: &str, path: &Path, replace: Replace, inputs: &[&Path]) -> Result<(), Error> {
     folder_path(option, path)?;
+    keeps_inputs(option, path, inputs)?;
     if replace == Replace::No && path.exists() {
         return Err(Failure(OutputError::Exists(path.to_path_buf()).to_string()).into());
+    }
+    Ok(())
+}
+
+/// The output folder `out` must not be, or hold, any of `inputs` (compared after resolving
+/// links and `..`; inputs or an output that do not exist cannot be deleted).
+pub fn keeps_inputs(option: &str, out: &Path, inputs: &[&Path]) -> Result<(), Usage> {
+    let Ok(out_real) = out.canonicalize() else { return Ok(()) };
+    for input in inputs {
+        let Ok(real) = input.canonicalize() else { continue };
+        if real.starts_with(&out_real) {
+            let relation = if real == out_real { "is" } else { "holds" };
+            return Err(Usage(format!(
+                "{option}: {} {relation} the input {}; writing the output there would delete it (choose another folder)",
+                out.display(),
+                input.display()
+            )));
+        }
     }
     Ok(())
 }

@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use psc_fit::eval::{evaluate, write_outputs, EvalOptions, FitFiles, Geometry, Method, Progress, ViewKind};
 
-use crate::Failure;
+use crate::{checks, Failure, Usage};
 
 #[derive(clap::ValueEnum, Clone, Copy, PartialEq, Eq, Debug)]
 pub enum GeometryArg {
@@ -54,7 +54,8 @@ pub struct Args {
     /// Path depth, Mitsuba convention.
     #[arg(long, default_value_t = EvalOptions::default().max_depth)]
     max_depth: u32,
-    /// Output folder (default: `<out>/eval`); replaced as a whole.
+    /// Output folder (default: `<out>/eval`); a previous evaluation there is replaced as a
+    /// whole, any other existing folder is refused.
     #[arg(long)]
     eval_dir: Option<PathBuf>,
     /// Also write the JSON here.
@@ -93,6 +94,17 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     let root = args.lib.clone().unwrap_or_else(psc_runtime::library::default_library_root);
     let library = psc_runtime::library::Library::load(&root)?;
     let fit = FitFiles::in_dir(&args.out);
+    // An evaluation replaces the previous one in its folder, nothing else (checked before the
+    // renders: an evaluation takes minutes).
+    if let Some(dir) = &args.eval_dir {
+        checks::keeps_inputs("--eval-dir", dir, &[&args.out, &args.scene]).map_err(|Usage(why)| Failure(why))?;
+        if dir.exists() && !dir.join("eval.json").is_file() {
+            return Err(Failure(format!(
+                "--eval-dir: {} exists and is not a previous evaluation (it has no eval.json); choose another folder",
+                dir.display()
+            )));
+        }
+    }
 
     let bar = if args.quiet {
         ProgressBar::hidden()

@@ -41,7 +41,9 @@ pub struct Args {
 
 pub fn run(args: Args) -> Result<ExitCode, Error> {
     let replace = if args.force { Replace::Yes } else { Replace::No };
-    checks::new_folder("--out", &args.out, replace)?;
+    let mut inputs = vec![args.scene.as_path(), &args.assign, &args.lights];
+    inputs.extend(args.lib.as_deref());
+    checks::new_folder("--out", &args.out, replace, &inputs)?;
     checks::bake_size("--texture-size", args.texture_size)?;
     let scene = Scene::load(&args.scene)?;
     let mut warnings = scene.warnings.clone();

@@ -3,7 +3,7 @@
 //! `psc-fit`.
 
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -193,6 +193,11 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
     let from_previous = args.refit_only || args.resume;
     let previous = if from_previous { Some(output::read_previous(&args.out)?) } else { None };
     let replace = if args.force || from_previous { Replace::Yes } else { Replace::No };
+    // The previous fit in --out (--resume, --refit-only) has been read: it is replaced by design.
+    let inputs: Vec<&Path> = std::iter::once(args.scene.as_path())
+        .chain([&args.lights, &args.lib].into_iter().filter_map(|p| p.as_deref()))
+        .collect();
+    checks::keeps_inputs("--out", &args.out, &inputs)?;
     let staged = StagedDir::new(&args.out, replace).map_err(|e| Failure(e.to_string()))?;
     let mut options = FitOptions { seed: args.seed, ..Default::default() };
     options.forced = args.graphs.iter().cloned().collect::<BTreeMap<_, _>>();

@@ -8,7 +8,7 @@
 //! on stderr). Materials: `--assign` overrides the parts it names (over a fit's materials too);
 //! `--set part.param=value` edits the assignment (`psc_runtime::edit`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use psc_render::{compute_light_grid_with_progress, image_io, LightGridOptions, LightsSource, RenderOptions, Renderer};
@@ -191,7 +191,10 @@ fn output(args: &Args) -> Result<Output, Error> {
             Err(Usage("--out: required; expected an image path ending in .png (sRGB) or .exr (linear)".into()).into())
         }
         (Some(p), true) => {
-            checks::new_folder("--out", p, replace(args))?;
+            let inputs: Vec<&Path> = std::iter::once(args.scene.as_path())
+                .chain([&args.camera, &args.lights, &args.assign, &args.lib].into_iter().filter_map(|p| p.as_deref()))
+                .collect();
+            checks::new_folder("--out", p, replace(args), &inputs)?;
             Ok(Output::Folder(p.clone()))
         }
         (Some(p), false) => {

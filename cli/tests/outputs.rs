@@ -78,3 +78,59 @@ fn a_bake_that_fails_part_way_leaves_nothing() {
     assert!(!out.exists(), "a failed bake left {:?}", names(&out));
     assert_eq!(names(dir), ["fragile.psg"], "temporaries left behind");
 }
+
+/// Copies the bundled example room (its small files) into `dest`.
+fn copy_example_room(dest: &Path) {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/room");
+    fn copy(from: &Path, to: &Path) {
+        std::fs::create_dir_all(to).unwrap();
+        for e in std::fs::read_dir(from).unwrap() {
+            let e = e.unwrap();
+            let target = to.join(e.file_name());
+            if e.file_type().unwrap().is_dir() {
+                copy(&e.path(), &target);
+            } else {
+                std::fs::copy(e.path(), &target).unwrap();
+            }
+        }
+    }
+    copy(&src, dest);
+}
+
+/// `--force` replaces an output folder, never the inputs: an output folder that is, or holds,
+/// the scene (or another input) is refused before any work, and the inputs stay whole. An
+/// evaluation replaces only a previous evaluation.
+#[test]
+fn an_output_folder_that_holds_an_input_is_refused_even_with_force() {
+    let tmp = scratch("inputs");
+    let top = tmp.path().join("top");
+    let scene = top.join("scene");
+    copy_example_room(&scene);
+    let before = names(&scene);
+    let (top_s, scene_s) = (top.to_str().unwrap(), scene.to_str().unwrap());
+    for args in [
+        vec!["fit", scene_s, "--out", scene_s, "--force", "--quiet"],
+        vec!["fit", scene_s, "--out", top_s, "--force", "--quiet"],
+        vec!["render", scene_s, "--gbuffer", "--out", top_s, "--force"],
+        vec!["export", scene_s, "--assign", "a.json", "--lights", "l.json", "--out", scene_s, "--force"],
+    ] {
+        let o = psc(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains("the input") && stderr(&o).contains("would delete it"), "{args:?}: {}", stderr(&o));
+        assert_eq!(names(&scene), before, "{args:?} touched the scene");
+    }
+
+    // `psc eval --eval-dir`: a folder that is not a previous evaluation is kept.
+    let mine = tmp.path().join("mine");
+    std::fs::create_dir(&mine).unwrap();
+    std::fs::write(mine.join("keep.txt"), "a file of the user's").unwrap();
+    let fit = tmp.path().join("fit");
+    std::fs::create_dir(&fit).unwrap();
+    for dir in [&mine, &scene] {
+        let o = psc(&["eval", fit.to_str().unwrap(), scene_s, "--eval-dir", dir.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(stderr(&o).contains("--eval-dir"), "{}", stderr(&o));
+    }
+    assert_eq!(names(&mine), ["keep.txt"]);
+    assert_eq!(names(&scene), before);
+}
