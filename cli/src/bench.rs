@@ -26,8 +26,8 @@ pub struct Args {
     /// Grid side: size×size texels per evaluation.
     #[arg(long, default_value_t = 512)]
     pub size: usize,
-    /// Ops in the synthetic workload.
-    #[arg(long, default_value_t = 300)]
+    /// Ops in the synthetic workload (at most 4096: compiling larger programs takes minutes).
+    #[arg(long, default_value_t = 300, value_parser = parse_synthetic)]
     pub synthetic: usize,
     /// Seed of the synthetic workload generator.
     #[arg(long, default_value_t = 1)]
@@ -316,4 +316,14 @@ fn print_variants(what: &str, program: &Program, size: usize, runs: usize) -> Re
         );
     }
     Ok(())
+}
+
+/// A synthetic workload's op count: compiling programs much past a few thousand ops takes
+/// minutes (10 000: about a minute), and nothing here needs them.
+fn parse_synthetic(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n @ 1..=4096) => Ok(n),
+        Ok(n) => Err(format!("expected 1 to 4096 ops, got {n}")),
+        Err(e) => Err(format!("{e}")),
+    }
 }

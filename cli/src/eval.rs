@@ -35,8 +35,8 @@ pub struct Args {
     spp: u32,
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads (default: all cores; at most 256).
+    #[arg(long, value_parser = checks::parse_threads)]
     threads: Option<usize>,
     #[arg(long, value_enum, default_value_t = GeometryArg::Both)]
     geometry: GeometryArg,

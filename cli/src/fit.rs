@@ -55,8 +55,8 @@ pub struct Args {
     /// Worker threads (default: all cores; at most 256).
     #[arg(long, value_parser = checks::parse_threads)]
     threads: Option<usize>,
-    /// Random exemplars per graph for selection.
-    #[arg(long, default_value_t = fit_defaults().select.exemplars)]
+    /// Random exemplars per graph for selection (at most 1000: a hundred times PhotoScene's ten).
+    #[arg(long, default_value_t = fit_defaults().select.exemplars, value_parser = parse_exemplars)]
     exemplars: usize,
     /// Graphs at the top of the selection's pattern vote that each run a start of the fit
     /// (global UV search and a short run), beside the whole-loss vote's winner; the one that
@@ -66,8 +66,9 @@ pub struct Args {
     /// Most gradient iterations per part.
     #[arg(long, default_value_t = fit_defaults().fit.max_iterations)]
     iterations: u32,
-    /// Most photo pixels a part is fitted on (larger parts: the window with the most usable pixels).
-    #[arg(long, default_value_t = fit_defaults().fit_pixels)]
+    /// Most photo pixels a part is fitted on (larger parts: the window with the most usable
+    /// pixels); at least the 500 a part needs to be fitted at all.
+    #[arg(long, default_value_t = fit_defaults().fit_pixels, value_parser = parse_fit_pixels)]
     fit_pixels: usize,
     /// Photos with more pixels are fitted at a working resolution within this many: averaged
     /// over blocks of the smallest whole number of pixels that brings them within it (0: always
@@ -93,6 +94,25 @@ pub struct Args {
 /// options' likewise come from `OutputOptions::default()`).
 fn fit_defaults() -> FitOptions {
     FitOptions::default()
+}
+
+fn parse_exemplars(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n @ 1..=1000) => Ok(n),
+        Ok(n) => Err(format!("expected 1 to 1000 exemplars per graph, got {n}")),
+        Err(e) => Err(format!("{e}")),
+    }
+}
+
+/// Fewer fitted pixels than a part needs to be fitted at all (`FitOptions::min_pixels`) would
+/// fit its texture on a handful of them.
+fn parse_fit_pixels(s: &str) -> Result<usize, String> {
+    let n: usize = s.parse().map_err(|e| format!("{e}"))?;
+    let least = fit_defaults().min_pixels;
+    if n < least {
+        return Err(format!("{n} pixels are too few to fit a part's texture on; give at least {least}"));
+    }
+    Ok(n)
 }
 
 /// Fewer working pixels leave too few for a part's texture (a fit wants 500 usable pixels of a

@@ -146,6 +146,14 @@ fn requests_past_the_limits_are_refused_at_once() {
             2,
             vec!["--size:", "the limit is 67,108,864 texels"],
         ),
+        (v(&["bench", "--synthetic", "100000000", "--size", "8"]), 2, vec!["--synthetic", "expected 1 to 4096 ops"]),
+        (
+            v(&["fit", room, "--exemplars", "4000000000", "--out", &format!("{d}/f")]),
+            2,
+            vec!["--exemplars", "expected 1 to 1000 exemplars"],
+        ),
+        (v(&["fit", room, "--fit-pixels", "1", "--out", &format!("{d}/f")]), 2, vec!["--fit-pixels", "at least 500"]),
+        (v(&["eval", room, room, "--threads", "0"]), 2, vec!["--threads", "at least 1 thread"]),
     ];
     check(dir, &cases);
 }
