@@ -179,3 +179,50 @@ fn sizes_past_the_limits_are_refused_before_any_work() {
         assert!(!s.join("out").exists(), "{option}: an output folder was made");
     }
 }
+
+/// A previous fit whose state no fit could reach (a hand-edited or damaged `result.json`) is
+/// refused by `--resume` and `--refit-only`, naming the part and the value, and the previous
+/// fit stays as it was: carried on, such a state made outputs no reader accepts (a UV
+/// log-scale of 10⁶ wrote `"uv_scale": [null, null]`).
+#[test]
+fn resume_or_refit_only_from_a_state_no_fit_reaches() {
+    let tmp = room("bad-state");
+    let s = tmp.path();
+    let (room, out) = (s.join("room"), s.join("out"));
+    let mut args: Vec<String> =
+        ["fit", room.to_str().unwrap(), "--out", out.to_str().unwrap()].map(String::from).to_vec();
+    for part in ["floor", "ceiling", "walls", "rug", "crate_crate", "barrel_barrelS_D"] {
+        args.extend(["--graph".into(), format!("{part}=homogeneous")]);
+    }
+    args.extend(
+        ["--quiet", "--iterations", "10", "--refit-rounds", "0", "--texture-size", "0", "--render-spp", "0"]
+            .map(String::from),
+    );
+    let run = Command::new(env!("CARGO_BIN_EXE_psc")).args(&args).output().unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let result_path = out.join("result.json");
+    let good = std::fs::read_to_string(&result_path).unwrap();
+    type Edit = fn(&mut serde_json::Value);
+    let edits: [(&str, Edit, &str); 4] = [
+        ("log-scale", |st| st["uv"]["log_scale"] = 1e6.into(), "UV transform"),
+        ("albedo scale", |st| st["albedo_scale"] = serde_json::json!([-5.0, -5.0, -5.0]), "albedo scale"),
+        ("roughness", |st| st["roughness"] = 0.0.into(), "roughness 0"),
+        ("parameters", |st| st["params"][0] = 1e30.into(), "parameters"),
+    ];
+    for (what, edit, says) in edits {
+        let mut result: serde_json::Value = serde_json::from_str(&good).unwrap();
+        edit(&mut result["fit_state"]["parts"][0]["state"]);
+        let damaged = serde_json::to_string_pretty(&result).unwrap();
+        std::fs::write(&result_path, &damaged).unwrap();
+        for flag in ["--resume", "--refit-only"] {
+            let run = Command::new(env!("CARGO_BIN_EXE_psc"))
+                .args(["fit", room.to_str().unwrap(), "--out", out.to_str().unwrap(), flag, "--quiet"])
+                .output()
+                .unwrap();
+            let stderr = String::from_utf8_lossy(&run.stderr);
+            assert_eq!(run.status.code(), Some(1), "{what} {flag}: {stderr}");
+            assert!(stderr.contains("part `floor`") && stderr.contains(says), "{what} {flag}: {stderr}");
+            assert_eq!(std::fs::read_to_string(&result_path).unwrap(), damaged, "{what} {flag}: the fit was replaced");
+        }
+    }
+}

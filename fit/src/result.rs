@@ -8,6 +8,7 @@ use psc_render::material::MaterialBinding;
 use psc_render::scene::{LightRadiances, Scene};
 use psc_runtime::library::Library;
 use psc_runtime::material::ProceduralMaterial;
+use psc_runtime::params::ParamSpace;
 use serde::{Deserialize, Serialize};
 
 use crate::align::{Dropped, Warp};
@@ -16,6 +17,7 @@ use crate::layer::MaterialState;
 use crate::light_solve::LightSolve;
 use crate::loss::LossValue;
 use crate::select::Ranked;
+use crate::uvmap::LOG_SCALE_RANGE;
 use crate::views::ViewScore;
 use crate::working::WorkingRaster;
 
@@ -219,7 +221,36 @@ impl PreviousFit {
                     material.graph.info.default_params().len()
                 )));
             }
+            check_state(&p.name, &ParamSpace::new(&material.graph.info), &p.state, p.roughness_scale)?;
         }
         Ok(())
     }
+}
+
+/// A previous fit's state of one part is one the fit could have reached: parameters in their
+/// declared ranges, a finite UV transform within the search's scales, positive albedo scales and
+/// a roughness in (0, 1]. Anything else would be carried into outputs no reader accepts.
+fn check_state(part: &str, space: &ParamSpace, state: &MaterialState, roughness_scale: f32) -> Result<(), FitError> {
+    let bad = |what: String| Err(FitError::Input(format!("part `{part}`: the previous fit's {what}")));
+    if let Err(e) = space.check(&state.params) {
+        return bad(format!("parameters: {e}"));
+    }
+    let uv = &state.uv;
+    let (lo, hi) = LOG_SCALE_RANGE;
+    if !(uv.rotation.is_finite() && uv.offset.iter().all(|o| o.is_finite()) && (lo..=hi).contains(&uv.log_scale)) {
+        return bad(format!(
+            "UV transform (rotation {}, log-scale {} of [{lo}, {hi}], offset {:?}) is not one the fit makes",
+            uv.rotation, uv.log_scale, uv.offset
+        ));
+    }
+    if !state.albedo_scale.iter().all(|a| a.is_finite() && *a > 0.0) {
+        return bad(format!("albedo scale {:?} is not finite and positive", state.albedo_scale));
+    }
+    if !(state.roughness > 0.0 && state.roughness <= 1.0) {
+        return bad(format!("roughness {} is not in (0, 1]", state.roughness));
+    }
+    if !(roughness_scale.is_finite() && roughness_scale >= 0.0) {
+        return bad(format!("roughness scale {roughness_scale} is not finite and non-negative"));
+    }
+    Ok(())
 }
