@@ -115,11 +115,28 @@ fn light_files_with_bad_radiances() {
                {"name":"ceiling2","radiance_rgb":[1,1,1]},{"name":"no_such_light","radiance_rgb":[1,1,1]}]}"#,
             "'no_such_light' is not in the scene",
         ),
+        (
+            r#"{"lights":[{"name":"ceiling0","radiance_rgb":0},{"name":"ceiling1","radiance_rgb":0},
+               {"name":"ceiling2","radiance_rgb":0}],"environment_scale":0}"#,
+            "every light's radiance is 0",
+        ),
     ] {
         std::fs::write(&path, text).unwrap();
         let err = fails(s, &["--lights", path.to_str().unwrap()]);
         assert!(err.contains(expect), "{text}: {err}");
     }
+}
+
+/// Black photos: the light estimate finds no light, and nothing can be fitted under none.
+#[test]
+fn black_photos() {
+    let tmp = room("black");
+    let s = tmp.path();
+    let photo = s.join("room/views/view0.png");
+    let (w, h) = image::image_dimensions(&photo).unwrap();
+    image::RgbImage::new(w, h).save(&photo).unwrap();
+    let err = fails(s, &[]);
+    assert!(err.contains("every light's radiance is 0") && err.contains("black"), "{err}");
 }
 
 #[test]

@@ -267,6 +267,12 @@ fn run(
             }
         },
     };
+    // Under no light every albedo fits as well as any other: there is nothing to fit.
+    if radiance.iter().flatten().all(|&c| c <= 0.0) {
+        return Err(FitError::Input(format!(
+            "every light's radiance is 0 ({light_source}): the parts cannot be fitted under no light (are the photos black?)"
+        )));
+    }
     lap("light estimate", &mut timings);
     progress.stage("light grids", views.len() as u64);
     let grids = lighting::view_grids(&renderer, &views, options.grid, options.seed)?;
