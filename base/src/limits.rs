@@ -14,6 +14,7 @@
 //! | [`MAX_GRID_SAMPLES`] | 2¹² | paths per hemisphere bin of a light grid (×128 bins a cell) |
 //! | [`MAX_THREADS`] | 256 | each thread has a stack; two cores gain nothing past a few |
 //! | [`MAX_VARIANTS`] | 10 000 | random variants of one bake (each writes five files) |
+//! | [`MAX_JSON_BYTES`] | 64 MiB | a JSON input file (scene, camera, lights, assignment, parameters: kilobytes in use) |
 //!
 //! Memory estimates are the caller's (it knows its bytes per element); [`check_elements`] does
 //! the overflow-safe arithmetic and the comparison with the budget.
@@ -34,6 +35,8 @@ pub const MAX_GRID_SAMPLES: u64 = 1 << 12;
 pub const MAX_THREADS: u64 = 256;
 /// Most random variants of one bake.
 pub const MAX_VARIANTS: u64 = 10_000;
+/// Largest JSON input file read.
+pub const MAX_JSON_BYTES: u64 = 64 << 20;
 
 /// A request over a limit.
 #[derive(Clone, Debug, PartialEq, Eq)]

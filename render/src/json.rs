@@ -4,6 +4,7 @@
 
 use std::path::Path;
 
+use psc_base::limits::MAX_JSON_BYTES;
 use serde::de::DeserializeOwned;
 
 use crate::RenderError;
@@ -12,6 +13,13 @@ use crate::RenderError;
 /// own message, naming `what` the file is for).
 pub fn read_text(path: &Path, what: &str) -> Result<String, RenderError> {
     check_file(path, what)?;
+    let bytes = std::fs::metadata(path).map_err(|e| RenderError::io(path, e))?.len();
+    if bytes > MAX_JSON_BYTES {
+        return Err(RenderError::io(
+            path,
+            format!("{bytes} bytes is larger than the {} MiB limit for JSON input files", MAX_JSON_BYTES >> 20),
+        ));
+    }
     std::fs::read_to_string(path).map_err(|e| RenderError::io(path, e))
 }
 

@@ -146,14 +146,16 @@ impl LightsFile {
 
     /// Every light at most once (values are checked while parsing).
     fn check(&self, path: &Path) -> Result<(), RenderError> {
+        let mut first: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
         for (i, l) in self.lights.iter().enumerate() {
-            if let Some(j) = self.lights[..i].iter().position(|o| o.name == l.name) {
+            if let Some(&j) = first.get(l.name.as_str()) {
                 return Err(RenderError::Invalid(format!(
                     "{}: light '{}' is listed twice (lights[{j}] and lights[{i}]); expected each light once",
                     path.display(),
                     l.name
                 )));
             }
+            first.insert(&l.name, i);
         }
         Ok(())
     }
@@ -264,10 +266,19 @@ impl LightRadiances {
                 None => warnings.push(format!("{origin}: no radiance for light '{}'; using 1", l.name)),
             }
         }
-        for e in &file.lights {
-            if !scene.lights.iter().any(|l| l.name == e.name) {
-                warnings.push(format!("{origin}: light '{}' is not in the scene; ignored", e.name));
-            }
+        // Named one by one up to a few: a file of thousands would bury every other message.
+        const NAMED: usize = 5;
+        let unknown: Vec<&str> = file
+            .lights
+            .iter()
+            .filter(|e| !scene.lights.iter().any(|l| l.name == e.name))
+            .map(|e| e.name.as_str())
+            .collect();
+        for name in unknown.iter().take(NAMED) {
+            warnings.push(format!("{origin}: light '{name}' is not in the scene; ignored"));
+        }
+        if unknown.len() > NAMED {
+            warnings.push(format!("{origin}: {} more lights not in the scene; ignored", unknown.len() - NAMED));
         }
         if let Some(s) = file.environment_scale {
             out.environment = s.0;

@@ -139,3 +139,39 @@ fn a_truncated_photo_is_an_error_naming_the_file() {
     let e = load_err(dir).to_string();
     assert!(e.contains("view0.png"), "{e}");
 }
+
+/// JSON input files past the documented 64 MiB are refused before they are read (a sparse file
+/// here: nothing is written), and a lights file of many thousand entries is read in one pass,
+/// its unknown names summed up rather than listed one warning each.
+#[test]
+fn huge_json_files_and_lights_files_of_many_entries() {
+    let tmp = temp_dir("json-limits");
+    let dir = tmp.path();
+    write_scene(dir);
+    let scene = Scene::load(dir).unwrap();
+    let big = dir.join("big.json");
+    std::fs::File::create(&big).unwrap().set_len(psc_base::limits::MAX_JSON_BYTES + 1).unwrap();
+    let mut warnings = Vec::new();
+    let e = LightRadiances::from_file(&big, &scene, &mut warnings).unwrap_err().to_string();
+    assert!(e.contains("big.json") && e.contains("64 MiB limit"), "{e}");
+    std::fs::copy(&big, dir.join("scene.json")).unwrap();
+    let e = load_err(dir).to_string();
+    assert!(e.contains("scene.json") && e.contains("64 MiB limit"), "{e}");
+
+    let n = 50_000;
+    let entries: Vec<String> = (0..n)
+        .map(|i| format!(r#"{{"name": "l{i}", "radiance_rgb": [1, 1, 1]}}"#))
+        .chain([r#"{"name": "lamp", "radiance_rgb": [2, 3, 4]}"#.to_string()])
+        .collect();
+    let many = dir.join("many.json");
+    std::fs::write(&many, format!(r#"{{"lights": [{}]}}"#, entries.join(","))).unwrap();
+    let mut warnings = Vec::new();
+    let r = LightRadiances::from_file(&many, &scene, &mut warnings).unwrap();
+    assert_eq!(r.lights, vec![[2.0, 3.0, 4.0]]);
+    assert_eq!(warnings.len(), 6, "{warnings:?}");
+    assert!(warnings[5].contains(&format!("{} more lights not in the scene", n - 5)), "{warnings:?}");
+    // A name listed twice, far apart, is still found.
+    std::fs::write(&many, format!(r#"{{"lights": [{}, {}]}}"#, entries.join(","), entries[7])).unwrap();
+    let e = LightRadiances::from_file(&many, &scene, &mut Vec::new()).unwrap_err().to_string();
+    assert!(e.contains(&format!("lights[7] and lights[{}]", n + 1)), "{e}");
+}

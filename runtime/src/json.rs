@@ -13,7 +13,7 @@ use serde::de::{DeserializeSeed, Error as _, MapAccess, SeqAccess, Visitor};
 use serde_json::{Map, Number, Value};
 
 /// Largest JSON input file read (parameter and assignment files are a few kilobytes).
-pub const MAX_JSON_BYTES: u64 = 64 << 20;
+pub use psc_base::limits::MAX_JSON_BYTES;
 
 /// Why a JSON file could not be read.
 #[derive(Debug)]
