@@ -31,7 +31,7 @@ pub struct Args {
     /// At 256 (the truth's own count) a fit's true-geometry ratios move by up to 0.13 against
     /// 128 (dev_2's relit contrast 0.73 → 0.60, dev_1's novel 0.34 → 0.42), both ways, at twice
     /// the samples; 128 is kept.
-    #[arg(long, default_value_t = EvalOptions::default().spp)]
+    #[arg(long, default_value_t = EvalOptions::default().spp, value_parser = checks::parse_spp)]
     spp: u32,
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -49,10 +49,10 @@ pub struct Args {
     flat_iterations: u32,
     /// Samples per pixel of the flat fit's renders (at 16, the ceiling of dev_1, lit only
     /// indirectly, still moved by ±7% a round after four rounds).
-    #[arg(long, default_value_t = EvalOptions::default().flat_spp)]
+    #[arg(long, default_value_t = EvalOptions::default().flat_spp, value_parser = checks::parse_spp)]
     flat_spp: u32,
     /// Path depth, Mitsuba convention.
-    #[arg(long, default_value_t = EvalOptions::default().max_depth)]
+    #[arg(long, default_value_t = EvalOptions::default().max_depth, value_parser = clap::value_parser!(u32).range(1..))]
     max_depth: u32,
     /// Output folder (default: `<out>/eval`); a previous evaluation there is replaced as a
     /// whole, any other existing folder is refused.

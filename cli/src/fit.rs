@@ -18,7 +18,7 @@ use psc_runtime::assign::Assignment;
 use psc_runtime::library::{default_library_root, Library};
 
 use crate::progress::Drawer;
-use crate::{checks, Error, Failure};
+use crate::{checks, Error, Failure, Usage};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -167,6 +167,15 @@ impl FitProgress<'_> {
 }
 
 pub fn run(args: Args) -> Result<ExitCode, Error> {
+    let mut forced = BTreeMap::new();
+    for (part, graph) in &args.graphs {
+        if let Some(first) = forced.insert(part.clone(), graph.clone()) {
+            return Err(Usage(format!(
+                "--graph: part '{part}' is forced twice ({first}, then {graph}); give each part once"
+            ))
+            .into());
+        }
+    }
     if let Some(n) = args.threads {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().map_err(|e| Failure(e.to_string()))?;
     }
@@ -220,7 +229,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
     checks::keeps_inputs("--out", &args.out, &inputs)?;
     let staged = StagedDir::new(&args.out, replace).map_err(|e| Failure(e.to_string()))?;
     let mut options = FitOptions { seed: args.seed, ..Default::default() };
-    options.forced = args.graphs.iter().cloned().collect::<BTreeMap<_, _>>();
+    options.forced = forced;
     options.select.exemplars = args.exemplars;
     options.select.contenders = usize::from(args.contenders);
     options.fit.max_iterations = args.iterations;

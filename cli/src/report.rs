@@ -18,6 +18,13 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<ExitCode, Failure> {
+    // Without --scene a missing scene is said on the page (a fit output moved without it); a
+    // scene named on the command line that is not there is a mistake to say at once.
+    if let Some(scene) = &args.scene {
+        if !scene.join("scene.json").is_file() {
+            return Err(Failure(format!("--scene: {} is not a scene folder (no scene.json)", scene.display())));
+        }
+    }
     let path = write_report_with(&args.out, &ReportOptions { scene: args.scene, ..Default::default() })?;
     let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
     eprintln!("wrote {} ({:.1} MB)", path.display(), bytes as f64 / 1e6);

@@ -154,6 +154,15 @@ fn requests_past_the_limits_are_refused_at_once() {
         ),
         (v(&["fit", room, "--fit-pixels", "1", "--out", &format!("{d}/f")]), 2, vec!["--fit-pixels", "at least 500"]),
         (v(&["eval", room, room, "--threads", "0"]), 2, vec!["--threads", "at least 1 thread"]),
+        (v(&["eval", room, room, "--spp", "0"]), 2, vec!["--spp", "at least 1 sample"]),
+        (v(&["eval", room, room, "--flat-spp", "0"]), 2, vec!["--flat-spp", "at least 1 sample"]),
+        (v(&["eval", room, room, "--max-depth", "0"]), 2, vec!["--max-depth"]),
+        (
+            v(&["fit", room, "--graph", "floor=plaster", "--graph", "floor=knit", "--out", &format!("{d}/f")]),
+            2,
+            vec!["--graph: part 'floor' is forced twice (plaster, then knit)"],
+        ),
+        (v(&["report", room, "--scene", &format!("{d}/no-scene")]), 1, vec!["--scene:", "no scene.json"]),
     ];
     check(dir, &cases);
 }
