@@ -6,7 +6,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use psc_fit::eval::{evaluate, write_outputs, EvalOptions, FitFiles, Geometry, Method, Progress, ViewKind};
+use psc_fit::eval::{
+    check_eval_dir, evaluate, write_outputs, EvalOptions, FitFiles, Geometry, Method, Progress, ViewKind,
+};
 
 use crate::{checks, Failure, Usage};
 
@@ -98,13 +100,10 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     // renders: an evaluation takes minutes).
     if let Some(dir) = &args.eval_dir {
         checks::keeps_inputs("--eval-dir", dir, &[&args.out, &args.scene]).map_err(|Usage(why)| Failure(why))?;
-        if dir.exists() && !dir.join("eval.json").is_file() {
-            return Err(Failure(format!(
-                "--eval-dir: {} exists and is not a previous evaluation (it has no eval.json); choose another folder",
-                dir.display()
-            )));
-        }
     }
+    let eval_dir = args.eval_dir.clone().unwrap_or_else(|| args.out.join("eval"));
+    let option = if args.eval_dir.is_some() { "--eval-dir: " } else { "" };
+    check_eval_dir(&eval_dir).map_err(|e| Failure(format!("{option}{e}")))?;
 
     let bar = if args.quiet {
         ProgressBar::hidden()
@@ -127,7 +126,6 @@ pub fn run(args: Args) -> Result<ExitCode, Failure> {
     for w in &evaluation.warnings {
         eprintln!("warning: {w}");
     }
-    let eval_dir = args.eval_dir.clone().unwrap_or_else(|| args.out.join("eval"));
     write_outputs(&evaluation, &eval_dir, args.json.as_deref())?;
     print!("{}", evaluation.table());
     eprintln!("wrote {}", eval_dir.display());

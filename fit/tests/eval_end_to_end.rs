@@ -147,7 +147,13 @@ fn every_row_image_and_render_is_written_whole() {
     assert!(lit > input.render.len(), "the view is lit");
 
     let eval_dir = dir.join("eval");
+    // A folder that is not a previous evaluation is refused and left as it was.
     std::fs::create_dir_all(eval_dir.join("stale")).unwrap();
+    let err = write_outputs(&e, &eval_dir, None).unwrap_err();
+    assert!(err.to_string().contains("not a previous evaluation"), "{err}");
+    assert!(eval_dir.join("stale").is_dir() && !eval_dir.join("eval.json").exists());
+    // A previous evaluation is replaced whole.
+    std::fs::write(eval_dir.join("eval.json"), "{}").unwrap();
     let copy = dir.join("copy.json");
     write_outputs(&e, &eval_dir, Some(&copy)).unwrap();
     let json: serde_json::Value =

@@ -32,7 +32,7 @@ use std::time::Instant;
 use psc_runtime::library::Library;
 
 pub use metrics::PartMetrics;
-pub use report::write_outputs;
+pub use report::{check_eval_dir, write_outputs};
 pub use truth::ViewKind;
 
 use backend::{GeometryContext, Image, RenderSettings};

@@ -4,6 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
+use psc_base::output::{Replace, StagedDir};
+
 use serde_json::{json, Value};
 
 use super::backend;
@@ -299,64 +301,37 @@ impl Evaluation {
     }
 }
 
-/// Remove a folder tree, ignoring errors (clean-up of our own temporaries).
-fn remove_quietly(dir: &Path) {
-    let _ = std::fs::remove_dir_all(dir);
+/// An evaluation replaces a previous evaluation and nothing else: `eval_dir` must not exist, or
+/// be a folder holding an `eval.json`. Callers check it before the renders (an evaluation
+/// takes minutes); [`write_outputs`] checks it again before replacing anything.
+pub fn check_eval_dir(eval_dir: &Path) -> Result<(), EvalError> {
+    if std::fs::symlink_metadata(eval_dir).is_ok() && !eval_dir.join("eval.json").is_file() {
+        return Err(EvalError(format!(
+            "{} exists and is not a previous evaluation (it has no eval.json); choose another folder",
+            eval_dir.display()
+        )));
+    }
+    Ok(())
 }
 
-/// Write `eval_dir/eval.json` and `eval_dir/renders/…` as a whole: everything goes to a hidden
-/// sibling folder first, which then replaces `eval_dir` (a previous evaluation there is removed).
-/// With `json_copy`, the JSON is also written there. On any error nothing is left behind.
+/// Write `eval_dir/eval.json` and `eval_dir/renders/…` as a whole (a staged folder that then
+/// replaces a previous evaluation in `eval_dir`; see [`check_eval_dir`]). With `json_copy`,
+/// the JSON is also written there. On any error nothing is left behind.
 pub fn write_outputs(eval: &Evaluation, eval_dir: &Path, json_copy: Option<&Path>) -> Result<(), EvalError> {
-    let parent = match eval_dir.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    if !parent.is_dir() {
-        return Err(EvalError(format!("{}: no such folder", parent.display())));
-    }
-    let name = eval_dir.file_name().ok_or_else(|| EvalError(format!("{}: not a folder path", eval_dir.display())))?;
-    let tmp = parent.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
-    let old = parent.join(format!(".{}.old{}", name.to_string_lossy(), std::process::id()));
-    remove_quietly(&tmp);
+    check_eval_dir(eval_dir)?;
+    let staged = StagedDir::new(eval_dir, Replace::Yes).map_err(|e| EvalError(e.to_string()))?;
     let text = serde_json::to_string_pretty(&eval.to_json()).expect("JSON values serialise") + "\n";
-    let fill = || -> Result<(), EvalError> {
-        let io = |p: &Path, e: std::io::Error| EvalError(format!("{}: {e}", p.display()));
-        std::fs::create_dir_all(&tmp).map_err(|e| io(&tmp, e))?;
-        for im in &eval.images {
-            let path = tmp.join(render_path(im.geometry, im.method, &im.view));
-            let dir = path.parent().expect("render paths have folders");
-            std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
-            backend::write_png(&path, im.width, im.height, &im.render)?;
-        }
-        backend::atomic_write(&tmp.join("eval.json"), text.as_bytes())
-    };
-    if let Err(e) = fill() {
-        remove_quietly(&tmp);
-        return Err(e);
+    let io = |p: &Path, e: std::io::Error| EvalError(format!("{}: {e}", p.display()));
+    for im in &eval.images {
+        let path = staged.path().join(render_path(im.geometry, im.method, &im.view));
+        let dir = path.parent().expect("render paths have folders");
+        std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+        backend::write_png(&path, im.width, im.height, &im.render)?;
     }
+    backend::atomic_write(&staged.path().join("eval.json"), text.as_bytes())?;
     if let Some(path) = json_copy {
-        if let Err(e) = backend::atomic_write(path, text.as_bytes()) {
-            remove_quietly(&tmp);
-            return Err(e);
-        }
+        backend::atomic_write(path, text.as_bytes())?;
     }
-    let had_old = eval_dir.exists();
-    if had_old {
-        if let Err(e) = std::fs::rename(eval_dir, &old) {
-            remove_quietly(&tmp);
-            return Err(EvalError(format!("{}: cannot replace it: {e}", eval_dir.display())));
-        }
-    }
-    if let Err(e) = std::fs::rename(&tmp, eval_dir) {
-        if had_old {
-            let _ = std::fs::rename(&old, eval_dir);
-        }
-        remove_quietly(&tmp);
-        return Err(EvalError(format!("{}: {e}", eval_dir.display())));
-    }
-    if had_old {
-        remove_quietly(&old);
-    }
+    staged.commit().map_err(|e| EvalError(e.to_string()))?;
     Ok(())
 }
