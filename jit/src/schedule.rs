@@ -27,7 +27,7 @@
 //! not the default.
 
 use std::cmp::Reverse;
-use std::collections::HashMap;
+use std::collections::{BinaryHeap, HashMap};
 
 use cranelift_codegen::ir::{Block, Function, Inst, InstructionData, Opcode, Value, ValueDef};
 
@@ -129,7 +129,6 @@ pub(crate) fn schedule_block(func: &mut Function, block: Block, max_live: usize)
 
     let mut waiting: Vec<usize> = deps.iter().map(Vec::len).collect();
     let mut remaining_users: Vec<usize> = dependents.iter().map(Vec::len).collect();
-    let mut ready: Vec<usize> = (0..n).filter(|&k| !glued[k] && deps[k].is_empty()).collect();
     let mut order: Vec<usize> = Vec::with_capacity(n);
     let mut placed = vec![false; n];
     let mut live = 0i64;
@@ -139,23 +138,55 @@ pub(crate) fn schedule_block(func: &mut Function, block: Block, max_live: usize)
         let frees = deps[k].iter().filter(|&&p| defines_vector[p] && remaining_users[p] == 1).count() as i64;
         i64::from(defines_vector[k] && !dependents[k].is_empty()) - frees
     };
-    while !ready.is_empty() {
-        let slot = if live >= max_live as i64 {
-            (0..ready.len()).min_by_key(|&i| (net(ready[i], &remaining_users), ready[i]))
+    // The ready instructions, in two heaps (a scan of the ready list per step was quadratic:
+    // in a long chain's adjoint thousands of instructions wait ready at once). By critical
+    // path (fixed keys); and by net register change, whose keys only fall (an operand whose
+    // other users are all placed becomes freeable), so a fall pushes a fresh entry and an
+    // entry whose key is no longer current is skipped. Ties go to the lower index, as the
+    // keys include it, so the order is that of picking the best of the whole ready set.
+    let mut by_path: BinaryHeap<(u32, Reverse<usize>)> = BinaryHeap::new();
+    let mut by_net: BinaryHeap<Reverse<(i64, usize)>> = BinaryHeap::new();
+    let mut ready = 0usize;
+    for k in (0..n).filter(|&k| !glued[k] && deps[k].is_empty()) {
+        by_path.push((path[k], Reverse(k)));
+        by_net.push(Reverse((net(k, &remaining_users), k)));
+        ready += 1;
+    }
+    while ready > 0 {
+        let k = if live >= max_live as i64 {
+            loop {
+                let Reverse((key, k)) = by_net.pop().expect("every ready instruction has an entry");
+                if !placed[k] && key == net(k, &remaining_users) {
+                    break k;
+                }
+            }
         } else {
-            (0..ready.len()).max_by_key(|&i| (path[ready[i]], Reverse(ready[i])))
-        }
-        .expect("ready is not empty");
-        let k = ready.swap_remove(slot);
+            loop {
+                let (_, Reverse(k)) = by_path.pop().expect("every ready instruction has an entry");
+                if !placed[k] {
+                    break k;
+                }
+            }
+        };
+        ready -= 1;
         live += net(k, &remaining_users);
         place(k, &glued, &operands, &mut placed, &mut order);
         for &p in &deps[k] {
             remaining_users[p] -= 1;
+            if remaining_users[p] == 1 && defines_vector[p] {
+                // p's last user frees it now: if that user is ready, its key fell.
+                let last = dependents[p].iter().copied().find(|&u| !placed[u]).expect("one user remains");
+                if waiting[last] == 0 {
+                    by_net.push(Reverse((net(last, &remaining_users), last)));
+                }
+            }
         }
         for &u in &dependents[k] {
             waiting[u] -= 1;
             if waiting[u] == 0 {
-                ready.push(u);
+                by_path.push((path[u], Reverse(u)));
+                by_net.push(Reverse((net(u, &remaining_users), u)));
+                ready += 1;
             }
         }
     }
