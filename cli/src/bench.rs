@@ -26,7 +26,7 @@ pub struct Args {
     /// Grid side: size×size texels per evaluation.
     #[arg(long, default_value_t = 512)]
     pub size: usize,
-    /// Ops in the synthetic workload (at most 4096: compiling larger programs takes minutes).
+    /// Ops in the synthetic workload (at most 65 536).
     #[arg(long, default_value_t = 300, value_parser = parse_synthetic)]
     pub synthetic: usize,
     /// Seed of the synthetic workload generator.
@@ -301,9 +301,11 @@ fn print_variants(what: &str, program: &Program, size: usize, runs: usize) -> Re
     let variants = [OptLevel::None, OptLevel::Speed]
         .into_iter()
         .flat_map(|opt_level| [1, 2, 4].map(move |groups| (opt_level, groups)))
-        .flat_map(|(opt_level, groups)| [None, scheduled].map(move |schedule| Options { opt_level, groups, schedule }));
+        .flat_map(|(opt_level, groups)| {
+            [None, scheduled].map(move |schedule| Options { opt_level, groups, schedule, ..Options::default() })
+        });
     for options in variants {
-        let Options { opt_level, groups, schedule } = options;
+        let Options { opt_level, groups, schedule, .. } = options;
         let k = psc_jit::compile_with(program, &options)?;
         let mut outs = Vec::new();
         let t = best_of(runs, || run_chunked(&k, &params, &u, &v, &seed_refs, &mut outs))?;
@@ -322,8 +324,8 @@ fn print_variants(what: &str, program: &Program, size: usize, runs: usize) -> Re
 /// minutes (10 000: about a minute), and nothing here needs them.
 fn parse_synthetic(s: &str) -> Result<usize, String> {
     match s.parse::<usize>() {
-        Ok(n @ 1..=4096) => Ok(n),
-        Ok(n) => Err(format!("expected 1 to 4096 ops, got {n}")),
+        Ok(n @ 1..=65536) => Ok(n),
+        Ok(n) => Err(format!("expected 1 to 65536 ops, got {n}")),
         Err(e) => Err(format!("{e}")),
     }
 }

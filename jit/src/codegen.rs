@@ -55,6 +55,8 @@ pub(crate) fn build(program: &Program, opts: &Options) -> Result<Built, JitError
         OptLevel::Speed => "speed",
     };
     flags.set("opt_level", level).map_err(|e| cg(&e))?;
+    let regalloc = if program.nodes.len() > opts.single_pass_above { "single_pass" } else { "backtracking" };
+    flags.set("regalloc_algorithm", regalloc).map_err(|e| cg(&e))?;
     flags.set("is_pic", "false").map_err(|e| cg(&e))?;
     flags.set("use_colocated_libcalls", "false").map_err(|e| cg(&e))?;
     // The IR is verified by construction; cranelift's verifier roughly doubles compile time.

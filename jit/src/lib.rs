@@ -79,11 +79,31 @@ pub struct Options {
     /// List-schedule the loop body for instruction-level parallelism, keeping about this many
     /// vector values live (`schedule.rs`); `None` keeps the IR's order.
     pub schedule: Option<usize>,
+    /// Programs of more ops than this get cranelift's single-pass register allocator instead
+    /// of its backtracking one ([`SINGLE_PASS_ABOVE`] by default).
+    pub single_pass_above: usize,
 }
+
+/// Ops above which a program's registers are allocated in a single pass.
+///
+/// Cranelift's backtracking allocator (regalloc2's ion) goes quadratic when thousands of
+/// values are live at once, as the forward values of a long chain are through its adjoint: a
+/// 1000-line let-chain (5 860 ops forward, 12 876 forward + adjoint) compiled in 1.2 s + 2.2 s,
+/// and a 5000-line one took 81 s to bake. The single-pass allocator compiles those in 46 ms +
+/// 46 ms and 0.55 s, and the chain's kernels ran as fast. On the library's kernels (at most
+/// 2 602 ops, compiled in at most 8 + 21 ms) its code ran at 0.72x (forward) and 0.68x
+/// (adjoint) the speed, geometric mean over `psc bench graphs`, so it is kept for programs
+/// past the library's.
+pub const SINGLE_PASS_ABOVE: usize = 4000;
 
 impl Default for Options {
     fn default() -> Self {
-        Options { opt_level: OptLevel::None, groups: 1, schedule: Some(schedule::MAX_LIVE) }
+        Options {
+            opt_level: OptLevel::None,
+            groups: 1,
+            schedule: Some(schedule::MAX_LIVE),
+            single_pass_above: SINGLE_PASS_ABOVE,
+        }
     }
 }
 

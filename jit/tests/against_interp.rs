@@ -34,7 +34,8 @@ fn points(
 fn options(k: u8) -> Options {
     let opt_level = if k & 1 == 0 { OptLevel::Speed } else { OptLevel::None };
     let schedule = [None, Some(2), Some(12)][(k as usize >> 3) % 3];
-    Options { opt_level, groups: [1, 2, 4][(k as usize >> 1) % 3], schedule }
+    let single_pass_above = if k & 32 == 0 { Options::default().single_pass_above } else { 0 };
+    Options { opt_level, groups: [1, 2, 4][(k as usize >> 1) % 3], schedule, single_pass_above }
 }
 
 fn spec() -> impl Strategy<Value = Vec<(u8, u32, u32, u32)>> {
@@ -240,5 +241,36 @@ fn run_point_with_many_outputs_matches_run() {
     let batch = run_jit(&k, &p, &[0.3], &[0.7], &[]);
     for (o, col) in batch.iter().enumerate() {
         assert!(same_bits(point[o], col[0]), "output {o}: {} vs {}", point[o], col[0]);
+    }
+}
+
+/// A program past `SINGLE_PASS_ABOVE` ops, compiled with the default options (so with the
+/// single-pass register allocator), is bit-exact with the mirror on every output, and its
+/// outputs are those of the same program under the backtracking allocator.
+#[test]
+fn programs_past_the_single_pass_threshold_match_the_mirror() {
+    let mut r = Rng::new(11);
+    // Each op's first operand is the op before it (the pool holds u, v, three parameters,
+    // one seed and three constants, then the ops), so every op is live in the kernel, and
+    // the others reach back anywhere, so thousands of values are live at once.
+    let leaves = 9;
+    let spec: Vec<(u8, u32, u32, u32)> = (0..psc_jit::SINGLE_PASS_ABOVE as u32 + 500)
+        .map(|i| (r.next_u64() as u8, leaves + i - 1, r.next_u64() as u32, r.next_u64() as u32))
+        .collect();
+    let outs: Vec<u32> = (0..8).map(|_| r.next_u64() as u32).collect();
+    let prog = random_program(&spec, &[0.5, -1.5, 3.7], 1, &outs, OpSet::All);
+    assert!(prog.nodes.len() > psc_jit::SINGLE_PASS_ABOVE, "{} ops", prog.nodes.len());
+    let single_pass = compile_with(&prog, &Options::default()).unwrap();
+    let backtracking = compile_with(&prog, &Options { single_pass_above: usize::MAX, ..Options::default() }).unwrap();
+    let (u, v, p, s) = points(3, 37, prog.num_params, prog.num_seeds, true);
+    let got = run_jit(&single_pass, &p, &u, &v, &s);
+    let other = run_jit(&backtracking, &p, &u, &v, &s);
+    for i in 0..u.len() {
+        let seeds_i: Vec<f32> = s.iter().map(|c| c[i]).collect();
+        let want = mirror_eval_point(&prog, single_pass.uses_fma(), &p, u[i], v[i], &seeds_i);
+        for (o, w) in want.iter().enumerate() {
+            assert!(same_bits(got[o][i], *w), "point {i} output {o}: jit {:e} mirror {:e}", got[o][i], w);
+            assert!(same_bits(got[o][i], other[o][i]), "point {i} output {o}: the allocators disagree");
+        }
     }
 }
