@@ -4,9 +4,9 @@
 //! the external checkers where installed: the Khronos glTF validator (npm `gltf-validator`),
 //! Mitsuba 3 (`pip install mitsuba`) against `psc render`, and Blender.
 //!
-//! Checkers that are missing print a loud SKIPPED line, except under `CI` for the validator and
-//! Mitsuba (CI installs them), unless `.ci/run` said the install failed
-//! (`PSC_GLTF_VALIDATOR_UNAVAILABLE`, `PSC_MITSUBA_UNAVAILABLE`).
+//! Checkers that are missing print a loud SKIPPED line, except under `CI` (which installs them),
+//! unless `.ci/run` said the install failed (`PSC_GLTF_VALIDATOR_UNAVAILABLE`,
+//! `PSC_MITSUBA_UNAVAILABLE`, `PSC_BLENDER_UNAVAILABLE`).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -473,8 +473,7 @@ fn mitsuba_renders_the_export_close_to_psc_render() {
 #[test]
 fn blender_imports_the_gltf_and_renders_a_frame() {
     let have = Command::new("blender").arg("--version").output().is_ok_and(|o| o.status.success());
-    if !have {
-        not_run::say_skipped("blender not installed (apt-get install blender python3-numpy)");
+    if !have && missing("blender", "apt-get install blender python3-numpy", true, "PSC_BLENDER_UNAVAILABLE") {
         return;
     }
     let tmp = scratch("blender");
