@@ -19,9 +19,12 @@ scene on purpose (a negative control: the comparison must then fail its toleranc
 light mesh deleted, or the base-colour textures read as linear instead of sRGB.
 """
 import json
+import os
 import sys
 
 import bpy
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 try:
     import numpy as np
@@ -30,10 +33,9 @@ try:
     # python3-numpy): give the alias back so the importer runs.
     if not hasattr(np, "bool"):
         np.bool = bool
+    from image_compare import figures
 except ImportError:
     np = None  # the importer says it needs numpy (Debian: apt-get install python3-numpy)
-
-EMITTER = 4.0  # linear value above which a pixel is taken to show a light
 
 
 def option(argv, name, default=None):
@@ -47,14 +49,6 @@ def load_rgb(path):
     pixels = np.empty(w * h * 4, dtype=np.float32)
     image.pixels.foreach_get(pixels)
     return pixels.reshape(h, w, 4)[..., :3].astype(np.float64)
-
-
-def block_rel(a, b, k=8):
-    la, lb = a.mean(-1), b.mean(-1)
-    H, W = la.shape
-    A = la[: H // k * k, : W // k * k].reshape(H // k, k, W // k, k).mean((1, 3))
-    B = lb[: H // k * k, : W // k * k].reshape(H // k, k, W // k, k).mean((1, 3))
-    return float((np.abs(A - B) / np.maximum(B, 1e-2)).mean())
 
 
 def perturb(scene, what):
@@ -150,18 +144,7 @@ def main():
         img = load_rgb(frame)
         if img.shape != reference.shape:
             raise RuntimeError(f"image sizes differ: psc {reference.shape}, blender {img.shape}")
-        # Lights seen directly (radiance in the tens) would dominate plain means.
-        surface = (reference.max(-1) < EMITTER) & (img.max(-1) < EMITTER)
-        b_mean, p_mean = img[surface].mean(0), reference[surface].mean(0)
-        print(json.dumps({
-            "blender_mean": b_mean.tolist(),
-            "psc_mean": p_mean.tolist(),
-            "channel_ratio": (b_mean / np.maximum(p_mean, 1e-12)).tolist(),
-            "mean_ratio": float(img[surface].mean() / max(reference[surface].mean(), 1e-12)),
-            "surface_fraction": float(surface.mean()),
-            "block8": block_rel(img, reference),
-            "blender": bpy.app.version_string,
-        }))
+        print(json.dumps({**figures(img, reference, "blender"), "blender": bpy.app.version_string}))
     print(f"BLENDER_GLTF_CHECK OK meshes={len(meshes)} cameras={len(cameras)}")
 
 

@@ -20,23 +20,15 @@ import os
 import sys
 import xml.etree.ElementTree as ET
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
 try:
     import numpy as np
     import mitsuba as mi
+    from image_compare import figures
 except ImportError as e:  # the caller prints the SKIPPED line
     print(f"mitsuba not available: {e}", file=sys.stderr)
     sys.exit(2)
-
-
-EMITTER = 4.0  # linear value above which a pixel is taken to show a light
-
-
-def block_rel(a, b, k=8):
-    la, lb = a.mean(-1), b.mean(-1)
-    H, W = la.shape
-    A = la[: H // k * k, : W // k * k].reshape(H // k, k, W // k, k).mean((1, 3))
-    B = lb[: H // k * k, : W // k * k].reshape(H // k, k, W // k, k).mean((1, 3))
-    return float((np.abs(A - B) / np.maximum(B, 1e-2)).mean())
 
 
 def main():
@@ -92,20 +84,7 @@ def main():
     if ref.shape != img.shape:
         print(f"image sizes differ: psc {ref.shape}, mitsuba {img.shape}", file=sys.stderr)
         sys.exit(1)
-    # Lights seen directly (radiance in the tens) would dominate plain means: the figures are
-    # over the pixels where neither image sees an emitter.
-    surface = (ref.max(-1) < EMITTER) & (img.max(-1) < EMITTER)
-    m_mean, p_mean = img[surface].mean(0), ref[surface].mean(0)
-    print(json.dumps({
-        "mitsuba_mean": m_mean.tolist(),
-        "psc_mean": p_mean.tolist(),
-        "channel_ratio": (m_mean / np.maximum(p_mean, 1e-12)).tolist(),
-        "mean_ratio": float(img[surface].mean() / max(ref[surface].mean(), 1e-12)),
-        "surface_fraction": float(surface.mean()),
-        "block8": block_rel(img, ref),
-        "mitsuba": mi.__version__,
-        "variant": args.variant,
-    }))
+    print(json.dumps({**figures(img, ref, "mitsuba"), "mitsuba": mi.__version__, "variant": args.variant}))
 
 
 if __name__ == "__main__":

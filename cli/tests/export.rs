@@ -411,20 +411,9 @@ fn mitsuba_check(out: &Path, ours: &Path, extra: &[&str]) -> (f64, [f64; 3], f64
     (m["mean_ratio"].as_f64().unwrap(), channels, m["block8"].as_f64().unwrap(), line)
 }
 
-/// Within `tol` in the mean and every channel, and `block_tol` in 8x8 blocks.
-fn agrees((mean, channels, block, _): &(f64, [f64; 3], f64, String), tol: f64, block_tol: f64) -> bool {
-    (mean - 1.0).abs() < tol && channels.iter().all(|c| (c - 1.0).abs() < tol) && *block < block_tol
-}
-
-#[test]
-fn mitsuba_renders_the_export_close_to_psc_render() {
-    let have = Command::new("python3").args(["-c", "import mitsuba, numpy"]).output().is_ok_and(|o| o.status.success());
-    if !have && missing("mitsuba", "pip install mitsuba numpy", true, "PSC_MITSUBA_UNAVAILABLE") {
-        return;
-    }
-    let tmp = scratch("mitsuba");
-    let dir = tmp.path();
-    let out = export_room(dir, None, "128");
+/// `psc render` of the example room's first view as the exports are checked against it
+/// (160x120, 32 spp, EXR): with its BRDF, and Lambertian (`--diffuse-only`).
+fn reference_renders(dir: &Path) -> (PathBuf, PathBuf) {
     let render = |name: &str, extra: &[&str]| {
         let path = dir.join(name);
         let mut args = vec![
@@ -449,8 +438,24 @@ fn mitsuba_renders_the_export_close_to_psc_render() {
         assert!(o.status.success(), "{}", text(&o));
         path
     };
-    let ours = render("psc.exr", &[]);
-    let ours_lambert = render("psc_lambert.exr", &["--diffuse-only"]);
+    (render("psc.exr", &[]), render("psc_lambert.exr", &["--diffuse-only"]))
+}
+
+/// Within `tol` in the mean and every channel, and `block_tol` in 8x8 blocks.
+fn agrees((mean, channels, block, _): &(f64, [f64; 3], f64, String), tol: f64, block_tol: f64) -> bool {
+    (mean - 1.0).abs() < tol && channels.iter().all(|c| (c - 1.0).abs() < tol) && *block < block_tol
+}
+
+#[test]
+fn mitsuba_renders_the_export_close_to_psc_render() {
+    let have = Command::new("python3").args(["-c", "import mitsuba, numpy"]).output().is_ok_and(|o| o.status.success());
+    if !have && missing("mitsuba", "pip install mitsuba numpy", true, "PSC_MITSUBA_UNAVAILABLE") {
+        return;
+    }
+    let tmp = scratch("mitsuba");
+    let dir = tmp.path();
+    let out = export_room(dir, None, "128");
+    let (ours, ours_lambert) = reference_renders(dir);
 
     // Lambert in both renderers isolates the export (geometry, uvs, baked maps and their colour
     // space, normal-map frames, lights, cameras) from the BSDF models. Measured: means within
@@ -516,32 +521,7 @@ fn blender_imports_the_gltf_and_renders_it_close_to_psc_render() {
     assert!(o.status.success() && text(&o).contains("BLENDER_GLTF_CHECK OK"), "{}", text(&o));
     assert!(std::fs::metadata(&png).is_ok_and(|m| m.len() > 0), "no frame rendered");
 
-    let render = |name: &str, extra: &[&str]| {
-        let path = dir.join(name);
-        let mut args = vec![
-            "render",
-            "examples/room",
-            "--assign",
-            "examples/room/materials.json",
-            "--lights",
-            "examples/room/lights.json",
-            "--view",
-            "view0",
-            "--size",
-            "160x120",
-            "--spp",
-            "32",
-            "--quiet",
-            "--out",
-            path.to_str().unwrap(),
-        ];
-        args.extend_from_slice(extra);
-        let o = psc(&args);
-        assert!(o.status.success(), "{}", text(&o));
-        path
-    };
-    let ours = render("psc.exr", &[]);
-    let ours_lambert = render("psc_lambert.exr", &["--diffuse-only"]);
+    let (ours, ours_lambert) = reference_renders(dir);
     let frame = dir.join("frame.exr");
     // Lambert in both isolates the glTF (geometry, uvs, baked maps and their colour space,
     // normal maps, emissive strengths, the camera) from the BSDF models. Measured (Blender 3.4,
