@@ -181,6 +181,12 @@ fn load_obj_text(
             materials.push(tobj::Material { name: name.clone(), ..Default::default() });
         }
     }
+    // Every statement is checked here, before tobj: tobj finds some of these problems itself
+    // (without a line), and drops others silently (a face's `vn` index when the file has no
+    // normals at all), so the one check for the room model and the light meshes is this one.
+    if let Some((line, problem, content)) = first_bad_line(&text) {
+        return Err(RenderError::Obj { path: path.to_path_buf(), message: describe_bad_line(line, &problem, content) });
+    }
     let synthetic = mtllibs.is_empty() && !usemtl.is_empty();
     let source = if synthetic { format!("mtllib __psc_synthetic.mtl\n{text}") } else { text };
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
@@ -190,10 +196,7 @@ fn load_obj_text(
     let (models, _) = tobj::load_obj_buf(&mut reader, &options, |_| {
         Ok((mats_for_loader.clone(), mats_for_loader.iter().enumerate().map(|(i, m)| (m.name.clone(), i)).collect()))
     })
-    .map_err(|e| RenderError::Obj {
-        path: path.to_path_buf(),
-        message: describe_obj_error(&source, usize::from(synthetic), &e),
-    })?;
+    .map_err(|e| RenderError::Obj { path: path.to_path_buf(), message: format!("cannot parse the OBJ: {e}") })?;
 
     let mut mesh = Mesh::default();
     let mut any_normals = false;
@@ -297,21 +300,16 @@ fn load_obj_text(
     Ok(mesh)
 }
 
-/// tobj's errors carry no line: find the first line of `text` that is not a valid OBJ statement
-/// (numbers where numbers belong, face indices that refer to vertices defined before them) and
-/// name it; `skip` lines at the top are ours (a synthetic mtllib).
-fn describe_obj_error(text: &str, skip: usize, e: &tobj::LoadError) -> String {
-    match first_bad_line(text) {
-        Some((line, problem, content)) => {
-            let shown: String = content.chars().take(80).collect();
-            let more = if content.chars().count() > 80 { "…" } else { "" };
-            format!("line {}: {problem} (found '{shown}{more}')", line.saturating_sub(skip))
-        }
-        None => format!("cannot parse the OBJ: {e}"),
-    }
+/// The error for the first invalid statement: its line, what is wrong and (the start of) the line.
+fn describe_bad_line(line: usize, problem: &str, content: &str) -> String {
+    let shown: String = content.chars().take(80).collect();
+    let more = if content.chars().count() > 80 { "…" } else { "" };
+    format!("line {line}: {problem} (found '{shown}{more}')")
 }
 
-/// (1-based line, what is wrong, the line) of the first invalid statement.
+/// (1-based line, what is wrong, the line) of the first invalid statement: numbers where numbers
+/// belong, face indices that refer to vertices, texture coordinates and normals defined before
+/// them (tobj's errors carry no line, and it ignores normal indices of a file with no `vn`).
 fn first_bad_line(text: &str) -> Option<(usize, String, &str)> {
     let (mut nv, mut nt, mut nn) = (0i64, 0i64, 0i64);
     let floats = |it: std::str::SplitWhitespace, min: usize, max: usize| {

@@ -95,3 +95,31 @@ fn obj_errors_carry_the_line() {
         assert!(msg.contains(&format!("room.obj: line {line}: {expect}")), "{bad:?}: {msg}");
     }
 }
+
+/// A face may name `vn`/`vt` indices only of normals / texture coordinates the file defines. tobj
+/// checks that only when the file has some; with none it dropped the indices silently. The room
+/// model and a light mesh go through the same check.
+#[test]
+fn face_indices_into_missing_normals_or_uvs_are_errors() {
+    for (what, bad, expect) in [
+        ("room", "f 1//9 2//9 3//9\n", "normal index '9' is not one of the 0 normals"),
+        ("room", "f 1/5/ 2/5/ 3/5/\n", "texture index '5' is not one of the 0 texture coordinates"),
+        ("light", "f 1//9 2//9 3//9\n", "normal index '9' is not one of the 0 normals"),
+    ] {
+        let tmp = temp_dir("obj-missing-vn");
+        let dir = tmp.path();
+        write_scene(dir);
+        let (file, base) = match what {
+            "room" => ("room.obj", room_obj(false)),
+            _ => ("lights/lamp.obj", LIGHT_OBJ.replace("vn 0 -1 0\n", "").replace("//1", "")),
+        };
+        assert!(!base.contains("vn") && !base.contains("vt"), "{base}");
+        let line = base.lines().count() + 1;
+        std::fs::write(dir.join(file), format!("{base}{bad}")).unwrap();
+        let msg = match Scene::load(dir) {
+            Ok(_) => panic!("{what} {bad:?} should not load"),
+            Err(e) => e.to_string(),
+        };
+        assert!(msg.contains(&format!("{file}: line {line}: {expect}")), "{what} {bad:?}: {msg}");
+    }
+}
