@@ -148,7 +148,7 @@ impl Camera {
 }
 
 /// A camera file for `psc render --camera`: either a [`CameraSpec`] or `{"camera": {...}}`,
-/// optionally with `"width"` and `"height"`.
+/// optionally with `"width"` and `"height"` (both or neither).
 #[derive(Clone, Debug)]
 pub struct CameraFile {
     pub camera: CameraSpec,
@@ -171,7 +171,14 @@ pub fn load_camera_file(path: &Path) -> Result<CameraFile, RenderError> {
     let r: CameraFileRepr = crate::json::read(path, "camera file")?;
     let size = match (r.width, r.height) {
         (Some(w), Some(h)) => Some((w, h)),
-        _ => None,
+        (None, None) => None,
+        (given, _) => {
+            let (has, lacks) = if given.is_some() { ("width", "height") } else { ("height", "width") };
+            return Err(RenderError::Invalid(format!(
+                "{}: \"{has}\" is given without \"{lacks}\"; give both (the image size in pixels) or neither",
+                path.display()
+            )));
+        }
     };
     let camera = match (r.camera, r.position, r.look_at, r.fov_y_deg) {
         (Some(c), None, None, None) => c,

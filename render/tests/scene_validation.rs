@@ -268,3 +268,27 @@ fn no_lights_key_places_ceiling_lights() {
         }
     }
 }
+
+/// A camera file gives its image size whole or not at all: `width` alone (or `height` alone) is
+/// an error naming the file and the missing field, not a silent fall-back to another size.
+#[test]
+fn camera_file_with_width_or_height_alone_is_an_error() {
+    let tmp = temp_dir("camera-size");
+    let camera = r#""position": [2.0, 1.4, 3.8], "look_at": [2.0, 0.8, 1.0], "fov_y_deg": 60.0"#;
+    for (body, given, missing) in [
+        (format!(r#"{{ {camera}, "width": 100 }}"#), "width", "height"),
+        (format!(r#"{{ "camera": {{ {camera} }}, "height": 100 }}"#), "height", "width"),
+    ] {
+        let path = tmp.path().join(format!("cam_{given}.json"));
+        std::fs::write(&path, body).unwrap();
+        let msg = match psc_render::camera::load_camera_file(&path) {
+            Ok(c) => panic!("{given} alone should not load: {:?}", c.size),
+            Err(e) => e.to_string(),
+        };
+        assert!(msg.contains(&path.display().to_string()), "{msg}");
+        assert!(msg.contains(&format!("\"{given}\" is given without \"{missing}\"")), "{msg}");
+    }
+    let path = tmp.path().join("both.json");
+    std::fs::write(&path, format!(r#"{{ {camera}, "width": 100, "height": 50 }}"#)).unwrap();
+    assert_eq!(psc_render::camera::load_camera_file(&path).unwrap().size, Some((100, 50)));
+}
