@@ -14,7 +14,8 @@
 //!   colours are linear `[r, g, b]` or `{"srgb": [r, g, b]}`; numbers are read at `f32`
 //!   precision; every value is checked against the parameter's range when the assignment is
 //!   bound to a library.
-//! - `uv_scale` (a number or `[su, sv]`, non-zero), `uv_offset` (`[ou, ov]`),
+//! - `uv_scale` (a number or `[su, sv]`, each of magnitude in [`UV_SCALE_RANGE`], 1e-4 to 1e4;
+//!   negative mirrors), `uv_offset` (`[ou, ov]`),
 //!   `uv_rotation_deg`: the texture coordinates the graph sees are
 //!   `(s, t) = (su (c u − s v) + ou, sv (s u + c v) + ov)` with `c, s = cos, sin(rotation)`.
 //!   Defaults: 1, `[0, 0]`, 0.
@@ -55,6 +56,26 @@ pub struct PartMaterial {
     pub uv: UvTransform,
     pub albedo_scale: [f32; 3],
     pub roughness_scale: f32,
+}
+
+/// The magnitudes a uv scale may have (texture tiles per mesh uv unit; a negative scale
+/// mirrors). The fit's scales are `1.5^k` for `k` in [−3.5, 4.25], about 0.24 to 5.6, and a
+/// room's uvs are about a metre per unit, so this admits any real use (a tile of 0.1 mm to one
+/// of 10 km) while refusing what only maps a part to one texel (0, a subnormal) or to noise.
+pub const UV_SCALE_RANGE: (f32, f32) = (1e-4, 1e4);
+
+/// A uv scale `[su, sv]` is usable when both are finite with magnitude in [`UV_SCALE_RANGE`]
+/// (the one check for assignment files and `--set` edits); the error gives the value and the
+/// range.
+pub fn check_uv_scale(scale: [f32; 2]) -> Result<(), String> {
+    let (lo, hi) = UV_SCALE_RANGE;
+    match scale.iter().find(|s| !(s.is_finite() && (lo..=hi).contains(&s.abs()))) {
+        None => Ok(()),
+        Some(&s) => {
+            let why = if s == 0.0 { " (a scale of 0 maps the part to one texel)" } else { "" };
+            Err(format!("the scale {s:e} is outside the usable range{why}: a uv scale's magnitude must be between {lo:e} and {hi:e}"))
+        }
+    }
 }
 
 /// Scale, rotation and offset of the texture coordinates (see the module docs for the order).
@@ -168,12 +189,7 @@ impl PartMaterial {
             }
             Some(v) => floats::<2>(v, "a non-zero number or [su, sv]").map_err(at("uv_scale"))?,
         };
-        if scale.contains(&0.0) {
-            return Err((
-                Some("uv_scale"),
-                AssignProblem::Invalid { message: "a scale of 0 maps the part to one texel".into() },
-            ));
-        }
+        check_uv_scale(scale).map_err(|message| (Some("uv_scale"), AssignProblem::Invalid { message }))?;
         let offset =
             field("uv_offset").map_or(Ok([0.0, 0.0]), |v| floats::<2>(v, "[ou, ov]")).map_err(at("uv_offset"))?;
         let rotation_deg = field("uv_rotation_deg")

@@ -5,7 +5,8 @@
 //!   colour), checked against the declared range; integers must be integral;
 //! - `<part>.albedo_scale=r,g,b` (or one number for all three), `<part>.roughness_scale=x`:
 //!   finite and ≥ 0;
-//! - `<part>.uv.rotation=degrees`, `<part>.uv.scale=s` or `su,sv` (non-zero),
+//! - `<part>.uv.rotation=degrees`, `<part>.uv.scale=s` or `su,sv` (magnitude 1e-4 to 1e4,
+//!   `assign::UV_SCALE_RANGE`),
 //!   `<part>.uv.log_scale=k` (the fit's parametrisation: scale `1.5^k` on both axes),
 //!   `<part>.uv.offset=ou,ov`.
 //!
@@ -140,9 +141,7 @@ impl Edit {
                     vec![UV_LOG_SCALE_BASE.powf(f(x[0]))]
                 };
                 let s = [s[0], *s.get(1).unwrap_or(&s[0])];
-                if s.iter().any(|v| *v == 0.0 || !v.is_finite()) {
-                    return Err(err(format!("gives the scale {s:?}; it must be finite and non-zero")));
-                }
+                crate::assign::check_uv_scale(s).map_err(err)?;
                 m.uv.scale = s;
             }
             name => {

@@ -96,7 +96,18 @@ fn bad_files_name_the_file_part_and_field() {
             r#"{"parts": {"floor": {"graph": "plaster", "scale": 2}}}"#,
             "part `floor`: unknown field `scale` (expected one of: graph, params",
         ),
-        (r#"{"parts": {"floor": {"graph": "plaster", "uv_scale": 0}}}"#, "part `floor`: `uv_scale`: a scale of 0"),
+        (r#"{"parts": {"floor": {"graph": "plaster", "uv_scale": 0}}}"#, "part `floor`: `uv_scale`: the scale 0e0"),
+        // A subnormal, a scale beyond any use, either axis: refused with the value and the range.
+        (
+            r#"{"parts": {"floor": {"graph": "plaster", "uv_scale": 1e-45}}}"#,
+            "part `floor`: `uv_scale`: the scale 1e-45 is outside the usable range: a uv scale's magnitude must be \
+             between 1e-4 and 1e4",
+        ),
+        (r#"{"parts": {"floor": {"graph": "plaster", "uv_scale": [1, 2e4]}}}"#, "`uv_scale`: the scale 2e4 is outside"),
+        (
+            r#"{"parts": {"floor": {"graph": "plaster", "uv_scale": [-5e-5, 1]}}}"#,
+            "`uv_scale`: the scale -5e-5 is outside",
+        ),
         (
             r#"{"parts": {"floor": {"graph": "plaster", "uv_scale": "big"}}}"#,
             "`uv_scale`: expected a non-zero number or [su, sv], found a string \"big\"",

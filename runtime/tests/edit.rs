@@ -84,7 +84,12 @@ fn bad_edits_say_what_exists_and_change_nothing() {
         ("floor.tint=1.5,0,0", "outside its range [0, 1]"),
         ("floor.albedo_scale=1,-1,1", "negative channel"),
         ("floor.roughness_scale=-2", "is negative"),
-        ("floor.uv.scale=0", "finite and non-zero"),
+        ("floor.uv.scale=0", "the scale 0e0 is outside the usable range (a scale of 0 maps the part to one texel)"),
+        (
+            "floor.uv.scale=1e-45",
+            "the scale 1e-45 is outside the usable range: a uv scale's magnitude must be between 1e-4 and 1e4",
+        ),
+        ("floor.uv.log_scale=100", "is outside the usable range"),
         ("floor.uv.offset=1", "takes 2 value(s), got 1"),
     ];
     let before = assignment();
