@@ -24,7 +24,7 @@ pub struct Args {
     /// synthetic program is benchmarked.
     pub paths: Vec<std::path::PathBuf>,
     /// Grid side: size×size texels per evaluation.
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub size: usize,
     /// Ops in the synthetic workload (at most 65 536).
     #[arg(long, default_value_t = 300, value_parser = parse_synthetic)]
@@ -33,7 +33,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Timed runs per measurement; the best is reported.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub runs: usize,
     /// Also compare code generation variants (cranelift opt level × vectors per iteration ×
     /// instruction scheduling).
@@ -69,9 +69,6 @@ impl BenchRow {
 }
 
 pub fn run(args: Args) -> Result<ExitCode, crate::Error> {
-    if args.size == 0 || args.runs == 0 {
-        return Err(Failure("--size and --runs must be at least 1".into()).into());
-    }
     // Interpreter and JIT both hold size² texels of every channel: the bake's limit applies.
     crate::checks::bake_size("--size", args.size)?;
     if !args.paths.is_empty() {

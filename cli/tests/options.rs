@@ -168,6 +168,16 @@ fn requests_past_the_limits_are_refused_at_once() {
 }
 
 #[test]
+fn bench_sizes_and_runs_of_zero_are_usage_errors() {
+    let tmp = scratch("bench");
+    let cases = vec![
+        (v(&["bench", "--size", "0"]), 2, vec!["--size", "'0'", "0 is not in 1.."]),
+        (v(&["bench", "--runs", "0"]), 2, vec!["--runs", "'0'", "0 is not in 1.."]),
+    ];
+    check(tmp.path(), &cases);
+}
+
+#[test]
 fn library_and_bake_options_that_make_no_sense_are_usage_errors() {
     let tmp = scratch("library");
     let dir = tmp.path();
