@@ -28,8 +28,8 @@ pub struct Args {
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
-    /// Edge of the baked maps in texels.
-    #[arg(long, default_value_t = 1024)]
+    /// Edge of the baked maps in texels (at least 1; the bake's texel limit applies).
+    #[arg(long, default_value_t = 1024, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     texture_size: usize,
     /// Graph library folder (default: this checkout's graphs/).
     #[arg(long)]

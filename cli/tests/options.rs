@@ -177,6 +177,25 @@ fn bench_sizes_and_runs_of_zero_are_usage_errors() {
     check(tmp.path(), &cases);
 }
 
+/// `psc export --texture-size 0` is a usage error before the scene or the library is read, as
+/// an over-limit size is; it was refused only by the export itself (exit 1, after loading).
+#[test]
+fn export_texture_sizes_out_of_range_are_usage_errors() {
+    let tmp = scratch("export");
+    let d = tmp.path().to_str().unwrap();
+    let out = format!("{d}/out");
+    let room = "examples/room";
+    let (assign, lights) = ("examples/room/materials.json", "examples/room/lights.json");
+    let export = |size: &str| {
+        v(&["export", room, "--assign", assign, "--lights", lights, "--out", &out, "--texture-size", size])
+    };
+    let cases = vec![
+        (export("0"), 2, vec!["--texture-size", "'0'", "0 is not in 1.."]),
+        (export("100000"), 2, vec!["--texture-size:", "the limit is 67,108,864 texels"]),
+    ];
+    check(tmp.path(), &cases);
+}
+
 #[test]
 fn library_and_bake_options_that_make_no_sense_are_usage_errors() {
     let tmp = scratch("library");
