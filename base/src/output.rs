@@ -44,6 +44,8 @@ pub enum OutputError {
     Exists(PathBuf),
     /// The destination exists but is not a folder (or not a file) as the output would be.
     WrongKind { path: PathBuf, expected: &'static str },
+    /// A folder on the way to the destination is a file (`--out notes.txt/out`).
+    FileInPath { file: PathBuf, dest: PathBuf },
     /// An I/O error on `path`.
     Io { path: PathBuf, error: io::Error },
 }
@@ -65,6 +67,12 @@ impl fmt::Display for OutputError {
             OutputError::WrongKind { path, expected } => {
                 write!(f, "{}: exists and is not {expected}; refusing to replace it", path.display())
             }
+            OutputError::FileInPath { file, dest } => write!(
+                f,
+                "{}: is a file, not a folder, so {} cannot be written inside it",
+                file.display(),
+                dest.display()
+            ),
             OutputError::Io { path, error } => write!(f, "{}: {error}", path.display()),
         }
     }
@@ -83,6 +91,7 @@ impl From<OutputError> for io::Error {
     fn from(e: OutputError) -> io::Error {
         let kind = match &e {
             OutputError::Exists(_) | OutputError::WrongKind { .. } => io::ErrorKind::AlreadyExists,
+            OutputError::FileInPath { .. } => io::ErrorKind::NotADirectory,
             OutputError::Io { error, .. } => error.kind(),
         };
         io::Error::new(kind, e.to_string())
@@ -209,6 +218,22 @@ impl Drop for Temporary {
     }
 }
 
+/// Refuse a destination inside a file: the nearest existing folder on the way to `dest` must
+/// be a folder, not a file (else creating folders fails with "File exists" and files with "Not a
+/// directory", naming neither the file nor why). Commands may call it before any work.
+pub fn check_parents(dest: &Path) -> Result<(), OutputError> {
+    for above in dest.ancestors().skip(1).filter(|a| !a.as_os_str().is_empty()) {
+        // Paths below a file fail with "not a directory": go up to the first that exists.
+        if let Ok(meta) = std::fs::metadata(above) {
+            if meta.is_dir() {
+                return Ok(());
+            }
+            return Err(OutputError::FileInPath { file: above.to_path_buf(), dest: dest.to_path_buf() });
+        }
+    }
+    Ok(())
+}
+
 /// (folder, file name) of a destination path.
 fn split(dest: &Path) -> Result<(PathBuf, String), OutputError> {
     let name =
@@ -278,6 +303,7 @@ pub fn write_atomic_with(path: &Path, write: impl FnOnce(&Path) -> io::Result<()
     if path.is_dir() {
         return Err(OutputError::WrongKind { path: path.to_path_buf(), expected: "a file" });
     }
+    check_parents(path)?;
     let tmp = Temporary::beside(path)?;
     write(&tmp.path).map_err(|e| OutputError::io(path, e))?;
     let f = std::fs::File::open(&tmp.path).map_err(|e| OutputError::io(path, e))?;
@@ -304,6 +330,7 @@ impl StagedDir {
     /// [`Replace::No`] (or is not a folder), so no work is wasted on an output that would be
     /// refused. The parent folder is created if needed.
     pub fn new(dest: &Path, replace: Replace) -> Result<StagedDir, OutputError> {
+        check_parents(dest)?;
         check_destination(dest, replace)?;
         let (dir, _) = split(dest)?;
         std::fs::create_dir_all(&dir).map_err(|e| OutputError::io(&dir, e))?;

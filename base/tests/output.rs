@@ -102,6 +102,29 @@ fn an_existing_folder_is_refused_without_replace_and_replaced_whole_with_it() {
     assert_eq!(std::fs::read(&file).unwrap(), b"keep");
 }
 
+/// A destination below a file names the file and says it is not a folder (it said `f: File
+/// exists (os error 17)`), and nothing is written, for a staged folder and an atomic file alike.
+#[test]
+fn a_file_on_the_way_to_the_destination_is_named() {
+    let tmp = temp_dir("file-in-path");
+    let dir = tmp.path();
+    let file = dir.join("f");
+    std::fs::write(&file, b"keep").unwrap();
+    for dest in [file.join("out"), file.join("a/b/out")] {
+        let e = StagedDir::new(&dest, Replace::No).err().expect("refused");
+        assert!(matches!(&e, OutputError::FileInPath { file: f, .. } if *f == file), "{e}");
+        let want = format!("{}: is a file, not a folder, so {} cannot", file.display(), dest.display());
+        assert!(e.to_string().contains(&want), "{e}");
+        let e = write_atomic(&dest.with_extension("png"), b"x").unwrap_err();
+        assert!(e.to_string().contains(&format!("{}: is a file, not a folder", file.display())), "{e}");
+    }
+    assert_eq!(listing(dir), ["f"], "nothing written");
+    assert_eq!(std::fs::read(&file).unwrap(), b"keep");
+    // A relative path whose first component is a file.
+    let e = psc_base::output::check_parents(Path::new("Cargo.toml/out")).unwrap_err();
+    assert_eq!(e.to_string(), "Cargo.toml: is a file, not a folder, so Cargo.toml/out cannot be written inside it");
+}
+
 /// Run in a child process by the tests below (ignored otherwise): stage a folder and an atomic
 /// file write next to `PSC_OUTPUT_CHILD_DIR`, say "ready", then keep writing until killed.
 #[test]

@@ -8,7 +8,8 @@ use psc_base::output::{OutputError, Replace};
 
 use crate::{Error, Failure, Usage};
 
-/// `path` is to be written as an image file with one of `extensions` (lower case, no dot).
+/// `path` is to be written as an image file with one of `extensions` (lower case, no dot), not
+/// inside a file.
 pub fn image_path(option: &str, path: &Path, extensions: &[&str]) -> Result<(), Usage> {
     let wanted = extensions.iter().map(|e| format!(".{e}")).collect::<Vec<_>>().join(" or ");
     if path.is_dir() {
@@ -19,17 +20,23 @@ pub fn image_path(option: &str, path: &Path, extensions: &[&str]) -> Result<(), 
     }
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext {
-        Some(e) if extensions.contains(&e.as_str()) => Ok(()),
+        Some(e) if extensions.contains(&e.as_str()) => in_a_folder(option, path),
         _ => Err(Usage(format!("{option}: expected a path ending in {wanted}, got {}", path.display()))),
     }
 }
 
-/// `path` is to be written as a folder: it must not be an existing file.
+/// No file stands where `path` needs a folder (`--out notes.txt/out`); the write would refuse it
+/// too, after the work.
+fn in_a_folder(option: &str, path: &Path) -> Result<(), Usage> {
+    psc_base::output::check_parents(path).map_err(|e| Usage(format!("{option}: {e}")))
+}
+
+/// `path` is to be written as a folder: it must not be an existing file, nor be inside one.
 pub fn folder_path(option: &str, path: &Path) -> Result<(), Usage> {
     if path.exists() && !path.is_dir() {
         return Err(Usage(format!("{option}: {} is a file; expected a folder to write into", path.display())));
     }
-    Ok(())
+    in_a_folder(option, path)
 }
 
 /// `path` is to be written as a new folder: not a file, not an existing folder unless it may

@@ -196,6 +196,40 @@ fn export_texture_sizes_out_of_range_are_usage_errors() {
     check(tmp.path(), &cases);
 }
 
+/// An output below an existing file (`--out notes.txt/out`) names the file and says it is not a
+/// folder, before any work (it said `notes.txt: File exists (os error 17)`, or `Not a directory`
+/// after rendering).
+#[test]
+fn outputs_inside_a_file_name_the_file() {
+    let tmp = scratch("file-in-path");
+    let d = tmp.path().to_str().unwrap();
+    let file = format!("{d}/notes.txt");
+    std::fs::write(&file, "not a folder").unwrap();
+    let (inside, deeper, png) = (format!("{file}/out"), format!("{file}/a/out"), format!("{file}/out.png"));
+    let room = "examples/room";
+    let (assign, lights) = ("examples/room/materials.json", "examples/room/lights.json");
+    let says = |dest: &str| format!("--out: {file}: is a file, not a folder, so {dest} cannot be written inside it");
+    let cases = [
+        (v(&["render", room, "--gbuffer", "--size", "8x6", "--out", &inside]), 2, vec![says(&inside)]),
+        (v(&["render", room, "--spp", "1", "--size", "8x6", "--out", &png]), 2, vec![says(&png)]),
+        (v(&["bake", "knit", "--size", "4", "--out", &deeper]), 2, vec![says(&deeper)]),
+        (
+            v(&["export", room, "--assign", assign, "--lights", lights, "--texture-size", "4", "--out", &inside]),
+            2,
+            vec![says(&inside)],
+        ),
+        (
+            v(&["library", "--only", "knit", "--size", "8", "--sheet", &png]),
+            2,
+            vec![format!("--sheet: {file}: is a file, not a folder")],
+        ),
+    ];
+    let cases: Vec<(Vec<String>, i32, Vec<&str>)> =
+        cases.iter().map(|(a, c, w)| (a.clone(), *c, w.iter().map(String::as_str).collect())).collect();
+    check(tmp.path(), &cases);
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "not a folder");
+}
+
 #[test]
 fn library_and_bake_options_that_make_no_sense_are_usage_errors() {
     let tmp = scratch("library");
