@@ -10,7 +10,9 @@ use serde::de::DeserializeOwned;
 use crate::RenderError;
 
 /// Read a file that must exist and be a regular file (a directory or a missing path gets its
-/// own message, naming `what` the file is for).
+/// own message, naming `what` the file is for). A UTF-8 byte-order mark at the start (some
+/// Windows editors write one) is dropped: it is not part of the JSON (or OBJ, MTL) text, and
+/// line 1's columns are then those an editor shows.
 pub fn read_text(path: &Path, what: &str) -> Result<String, RenderError> {
     check_file(path, what)?;
     let bytes = std::fs::metadata(path).map_err(|e| RenderError::io(path, e))?.len();
@@ -20,7 +22,11 @@ pub fn read_text(path: &Path, what: &str) -> Result<String, RenderError> {
             format!("{bytes} bytes is larger than the {} MiB limit for JSON input files", MAX_JSON_BYTES >> 20),
         ));
     }
-    std::fs::read_to_string(path).map_err(|e| RenderError::io(path, e))
+    let text = std::fs::read_to_string(path).map_err(|e| RenderError::io(path, e))?;
+    Ok(match text.strip_prefix('\u{feff}') {
+        Some(rest) => rest.to_string(),
+        None => text,
+    })
 }
 
 /// `Ok` when `path` is a regular file; otherwise an error saying whether it is missing or a

@@ -292,3 +292,26 @@ fn camera_file_with_width_or_height_alone_is_an_error() {
     std::fs::write(&path, format!(r#"{{ {camera}, "width": 100, "height": 50 }}"#)).unwrap();
     assert_eq!(psc_render::camera::load_camera_file(&path).unwrap().size, Some((100, 50)));
 }
+
+/// A UTF-8 byte-order mark at the start of scene.json (and of the OBJ, the MTL, a camera file)
+/// is skipped: it said `scene.json:1:1: expected value`.
+#[test]
+fn a_leading_byte_order_mark_is_skipped() {
+    let tmp = temp_dir("bom");
+    let dir = tmp.path();
+    write_scene(dir);
+    for file in ["scene.json", "room.obj", "room.mtl"] {
+        let text = std::fs::read_to_string(dir.join(file)).unwrap();
+        std::fs::write(dir.join(file), format!("\u{feff}{text}")).unwrap();
+    }
+    let s = Scene::load(dir).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(s.mesh.part_names, ["floor", "ceiling", "walls", "crate"], "the BOM'd mtllib line is read");
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    let camera = dir.join("camera.json");
+    std::fs::write(&camera, format!("\u{feff}{GOOD_CAMERA}")).unwrap();
+    psc_render::camera::load_camera_file(&camera).unwrap_or_else(|e| panic!("{e}"));
+    // Still an error (with its place) when the text after it is not JSON.
+    std::fs::write(dir.join("scene.json"), "\u{feff}{ \"format\": }").unwrap();
+    let msg = load_err(dir).to_string();
+    assert!(msg.contains("scene.json:1:13:"), "{msg}");
+}

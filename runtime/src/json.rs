@@ -71,8 +71,11 @@ pub fn read_file(path: &Path) -> Result<Value, JsonError> {
     parse(&bytes).map_err(err)
 }
 
-/// Parses JSON text, refusing duplicate keys (with the position of the second one).
+/// Parses JSON text, refusing duplicate keys (with the position of the second one). A UTF-8
+/// byte-order mark at the start (some Windows editors write one) is not part of the JSON and is
+/// skipped, as `psc_render`'s reader of scene files skips it.
 pub fn parse(bytes: &[u8]) -> Result<Value, JsonErrorKind> {
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let syntax = |e: serde_json::Error| JsonErrorKind::Syntax {
         line: e.line(),
         column: e.column(),
@@ -188,6 +191,18 @@ mod tests {
         syntax("1e400");
         syntax(&"[".repeat(100_000));
         assert!(matches!(parse(b"\xff\xfe"), Err(JsonErrorKind::Syntax { .. })));
+    }
+
+    #[test]
+    fn a_leading_byte_order_mark_is_skipped() {
+        let text = "\u{feff}{\"a\": 1}";
+        assert_eq!(parse(text.as_bytes()).unwrap(), serde_json::json!({"a": 1}));
+        // Columns on line 1 are counted from after it, as editors show them.
+        let (line, column, message) = syntax("\u{feff}{\"a\": }");
+        assert_eq!((line, column), (1, 7), "{message}");
+        // Only at the start: anywhere else it is text that is not JSON.
+        syntax("{\"a\": 1}\u{feff}");
+        syntax("\u{feff}\u{feff}{}");
     }
 
     #[test]
