@@ -41,8 +41,12 @@ pub fn check_file(path: &Path, what: &str) -> Result<(), RenderError> {
     }
 }
 
-/// Parse `text` (the contents of `path`) as a `T`.
+/// Parse `text` (the contents of `path`) as a `T`. Every JSON file this crate reads holds an
+/// object, so any other value at the top level is refused as such (serde reads an array as a
+/// struct's fields in order, which said `field [0]: invalid type` for a scene.json holding
+/// `[{...}]`, and names Rust types for a number).
 pub fn parse<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T, RenderError> {
+    top_level_object(path, text)?;
     let de = &mut serde_json::Deserializer::from_str(text);
     let value: T = serde_path_to_error::deserialize(&mut *de).map_err(|e| {
         let field = e.path().to_string();
@@ -56,6 +60,35 @@ pub fn parse<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T, RenderEr
     })?;
     de.end().map_err(|e| RenderError::json(path, &e))?;
     Ok(value)
+}
+
+/// `Ok` unless `text` is valid JSON whose top-level value is not an object, or starts an array;
+/// then an error at that value saying what it is. (Other text that is not JSON is left to the
+/// typed parse, which locates the syntax error.)
+fn top_level_object(path: &Path, text: &str) -> Result<(), RenderError> {
+    let start = text.trim_start_matches([' ', '\t', '\n', '\r']);
+    if start.is_empty() || start.starts_with('{') {
+        return Ok(());
+    }
+    let found = match serde_json::from_str::<serde_json::Value>(text) {
+        Ok(serde_json::Value::Array(a)) => format!("an array of {} elements", a.len()),
+        Ok(serde_json::Value::String(_)) => "a string".into(),
+        Ok(serde_json::Value::Number(n)) => format!("the number {n}"),
+        Ok(serde_json::Value::Bool(b)) => format!("`{b}`"),
+        Ok(serde_json::Value::Null) => "`null`".into(),
+        // Not JSON either: an array still says why (serde would report its first element).
+        Err(_) if start.starts_with('[') => "an array".into(),
+        Ok(serde_json::Value::Object(_)) | Err(_) => return Ok(()),
+    };
+    let before = &text[..text.len() - start.len()];
+    let line = before.matches('\n').count() + 1;
+    let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+    Err(RenderError::Json {
+        path: path.to_path_buf(),
+        line,
+        column,
+        message: format!("the file must hold a JSON object ({{ ... }}), found {found}"),
+    })
 }
 
 /// Read and parse a JSON file (`what` names it in errors: "scene manifest", "lights file").

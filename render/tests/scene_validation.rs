@@ -315,3 +315,36 @@ fn a_leading_byte_order_mark_is_skipped() {
     let msg = load_err(dir).to_string();
     assert!(msg.contains("scene.json:1:13:"), "{msg}");
 }
+
+/// A scene.json (or camera file) whose top level is not an object says the file must hold one,
+/// at the value: an array said `field [0]: invalid type` (serde reads it as the fields in order).
+#[test]
+fn a_json_file_that_is_not_an_object_says_so() {
+    let tmp = temp_dir("not-object");
+    let dir = tmp.path();
+    write_scene(dir);
+    let good = manifest(GOOD_CAMERA, GOOD_LABELS);
+    for (text, at, found) in [
+        (format!("[{good}]"), "1:1", "found an array of 1 elements"),
+        ("[]".to_string(), "1:1", "found an array of 0 elements"),
+        ("\n  5\n".to_string(), "2:3", "found the number 5"),
+        ("\"scene\"".to_string(), "1:1", "found a string"),
+        ("null".to_string(), "1:1", "found `null`"),
+    ] {
+        std::fs::write(dir.join("scene.json"), &text).unwrap();
+        let msg = load_err(dir).to_string();
+        let want = format!("scene.json:{at}: the file must hold a JSON object ({{ ... }}), {found}");
+        assert!(msg.contains(&want), "{text:?}: {msg}");
+    }
+    // A broken array is still an array; other text that is not JSON keeps its syntax error.
+    std::fs::write(dir.join("scene.json"), "[1, ").unwrap();
+    let msg = load_err(dir).to_string();
+    assert!(msg.contains("scene.json:1:1: the file must hold a JSON object ({ ... }), found an array"), "{msg}");
+    std::fs::write(dir.join("scene.json"), "scene").unwrap();
+    let msg = load_err(dir).to_string();
+    assert!(msg.contains("scene.json:1:1: expected value"), "{msg}");
+    let camera = dir.join("camera.json");
+    std::fs::write(&camera, format!("[{GOOD_CAMERA}]")).unwrap();
+    let msg = psc_render::camera::load_camera_file(&camera).unwrap_err().to_string();
+    assert!(msg.contains("camera.json:1:1: the file must hold a JSON object"), "{msg}");
+}
