@@ -80,22 +80,77 @@ pub fn read_rgb(path: &Path, srgb: bool) -> Result<RgbImage, RenderError> {
     Ok(RgbImage { width: w, height: h, data })
 }
 
-/// Read a part-label image: 8- or 16-bit grayscale PNG, values returned as stored.
+/// Read a part-label image: 8- or 16-bit grayscale PNG, values returned as stored. Anything
+/// else is refused, saying what the file holds as stored: the decoder expands a palette PNG to
+/// RGB, so its decoded type would misname it.
 pub fn read_labels(path: &Path) -> Result<(usize, usize, Vec<u16>), RenderError> {
     check_decodable(path, 4)?;
+    let stored = png_header(path);
     let dynimg = image::open(path).map_err(|e| RenderError::image(path, e))?;
     let (w, h) = (dynimg.width() as usize, dynimg.height() as usize);
     let data = match dynimg {
         image::DynamicImage::ImageLuma8(b) => b.into_raw().into_iter().map(u16::from).collect(),
         image::DynamicImage::ImageLuma16(b) => b.into_raw(),
         other => {
+            let kind = match stored {
+                Some(s) => s.describe(),
+                None => describe_color(other.color()),
+            };
             return Err(RenderError::image(
                 path,
-                format!("a label image must be 8- or 16-bit grayscale, this one is {:?}", other.color()),
+                format!(
+                    "a label image must be 8- or 16-bit grayscale (the label values as gray levels), this one is {kind}"
+                ),
             ));
         }
     };
     Ok((w, h, data))
+}
+
+/// What a PNG stores, from its header (IHDR): the decoder reports what it expands it to.
+#[derive(Clone, Copy, Debug)]
+struct PngHeader {
+    bit_depth: u8,
+    /// 0 grayscale, 2 RGB, 3 indexed (palette), 4 grayscale + alpha, 6 RGBA.
+    color_type: u8,
+}
+
+impl PngHeader {
+    fn describe(self) -> String {
+        let d = self.bit_depth;
+        match self.color_type {
+            0 => format!("{d}-bit grayscale"),
+            2 => format!("{d}-bit RGB colour"),
+            3 => format!("indexed colour (a palette PNG, {d}-bit indices)"),
+            4 => format!("{d}-bit grayscale with alpha"),
+            6 => format!("{d}-bit RGBA colour"),
+            c => format!("PNG colour type {c}"),
+        }
+    }
+}
+
+/// The header of `path` if it is a PNG (None for other formats or unreadable files: the
+/// decoder then reports them).
+fn png_header(path: &Path) -> Option<PngHeader> {
+    use std::io::Read;
+    let mut head = [0u8; 26];
+    std::fs::File::open(path).ok()?.read_exact(&mut head).ok()?;
+    (head[..8] == *b"\x89PNG\r\n\x1a\n" && head[12..16] == *b"IHDR")
+        .then_some(PngHeader { bit_depth: head[24], color_type: head[25] })
+}
+
+/// A decoded colour type in words.
+fn describe_color(c: image::ColorType) -> String {
+    use image::ColorType as C;
+    let bits = c.bits_per_pixel() / u16::from(c.channel_count());
+    let kind = match c {
+        C::L8 | C::L16 => "grayscale",
+        C::La8 | C::La16 => "grayscale with alpha",
+        C::Rgb8 | C::Rgb16 | C::Rgb32F => "RGB colour",
+        C::Rgba8 | C::Rgba16 | C::Rgba32F => "RGBA colour",
+        _ => return format!("{c:?}"),
+    };
+    format!("{bits}-bit {kind}")
 }
 
 /// Write `bytes` to `path` atomically (`psc_base::output::write_atomic`: a temporary in the same

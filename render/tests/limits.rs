@@ -64,18 +64,6 @@ fn cameras_and_grids_over_the_limits_are_refused() {
     assert!(e.contains("max_depth of at least 2"), "{e}");
 }
 
-/// CRC-32 (PNG's), bitwise.
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut c = 0xffff_ffffu32;
-    for &b in bytes {
-        c ^= b as u32;
-        for _ in 0..8 {
-            c = if c & 1 != 0 { 0xedb8_8320 ^ (c >> 1) } else { c >> 1 };
-        }
-    }
-    !c
-}
-
 /// A ~60-byte PNG whose header claims `w`×`h` (8-bit, colour `color_type`) and whose data is
 /// one empty IDAT.
 fn lying_png(w: u32, h: u32, color_type: u8) -> Vec<u8> {

@@ -123,6 +123,25 @@ fn colour_label_image_is_an_error() {
     assert!(msg.contains("grayscale"), "{msg}");
 }
 
+/// A palette PNG is named as one: the decoder expands it to RGB, and the error said `Rgb8`.
+#[test]
+fn palette_label_image_is_named_as_such() {
+    let tmp = temp_dir("labelpalette");
+    let dir = tmp.path();
+    write_scene(dir);
+    let rows: Vec<Vec<u8>> = (0..H).map(|y| vec![if y > H / 2 { 1 } else { 2 }; W]).collect();
+    let palette: Vec<u8> = (0..4u8).flat_map(|i| [i * 60, i * 60, i * 60]).collect();
+    let png = png_bytes(W as u32, H as u32, 8, 3, Some(&palette), &rows);
+    std::fs::write(dir.join("views/view0_parts.png"), png).unwrap();
+    let msg = load_err(dir).to_string();
+    assert!(msg.contains("view0_parts.png: a label image must be 8- or 16-bit grayscale"), "{msg}");
+    assert!(msg.contains("this one is indexed colour (a palette PNG, 8-bit indices)"), "{msg}");
+    // Other kinds are named in words too, not as the decoder's Rust names.
+    psc_render::image_io::write_rgb(&dir.join("views/view0_parts.png"), W, H, &vec![[0.2; 3]; W * H]).unwrap();
+    let msg = load_err(dir).to_string();
+    assert!(msg.contains("this one is 8-bit RGB colour") && !msg.contains("Rgb8"), "{msg}");
+}
+
 #[test]
 fn labels_naming_unknown_parts_warn() {
     let tmp = temp_dir("unknownpart");
