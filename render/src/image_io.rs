@@ -80,7 +80,8 @@ pub fn read_rgb(path: &Path, srgb: bool) -> Result<RgbImage, RenderError> {
     Ok(RgbImage { width: w, height: h, data })
 }
 
-/// Read a part-label image: 8- or 16-bit grayscale PNG, values returned as stored. Anything
+/// Read a part-label image: 8- or 16-bit grayscale PNG (or 1-, 2-, 4-bit), values returned as
+/// stored. Anything
 /// else is refused, saying what the file holds as stored: the decoder expands a palette PNG to
 /// RGB, so its decoded type would misname it.
 pub fn read_labels(path: &Path) -> Result<(usize, usize, Vec<u16>), RenderError> {
@@ -89,7 +90,15 @@ pub fn read_labels(path: &Path) -> Result<(usize, usize, Vec<u16>), RenderError>
     let dynimg = image::open(path).map_err(|e| RenderError::image(path, e))?;
     let (w, h) = (dynimg.width() as usize, dynimg.height() as usize);
     let data = match dynimg {
-        image::DynamicImage::ImageLuma8(b) => b.into_raw().into_iter().map(u16::from).collect(),
+        image::DynamicImage::ImageLuma8(b) => {
+            // The decoder scales 1-, 2- and 4-bit gray up to 8 bits (a 4-bit 3 becomes 51);
+            // labels are the stored values, so undo the (exact) scaling.
+            let scale = match stored {
+                Some(PngHeader { bit_depth: d @ (1 | 2 | 4), color_type: 0 }) => 255 / ((1u8 << d) - 1),
+                _ => 1,
+            };
+            b.into_raw().into_iter().map(|v| u16::from(v / scale)).collect()
+        }
         image::DynamicImage::ImageLuma16(b) => b.into_raw(),
         other => {
             let kind = match stored {

@@ -142,6 +142,32 @@ fn palette_label_image_is_named_as_such() {
     assert!(msg.contains("this one is 8-bit RGB colour") && !msg.contains("Rgb8"), "{msg}");
 }
 
+/// A 1-, 2- or 4-bit grayscale label image gives the values it stores: the decoder scales them
+/// to 8 bits, which turned the labels 1, 2 of a 4-bit image into 17, 34.
+#[test]
+fn low_bit_depth_label_images_give_their_stored_values() {
+    let tmp = temp_dir("labellowbit");
+    let dir = tmp.path();
+    write_scene(dir);
+    let label = |y: usize| if y > H / 2 { 1u8 } else { 2 };
+    for depth in [2u8, 4] {
+        let per_byte = 8 / depth as usize;
+        let rows: Vec<Vec<u8>> = (0..H)
+            .map(|y| {
+                (0..W.div_ceil(per_byte)).map(|_| (0..per_byte).fold(0u8, |acc, _| (acc << depth) | label(y))).collect()
+            })
+            .collect();
+        let png = png_bytes(W as u32, H as u32, depth, 0, None, &rows);
+        std::fs::write(dir.join("views/view0_parts.png"), png).unwrap();
+        let (w, h, data) = psc_render::image_io::read_labels(&dir.join("views/view0_parts.png")).unwrap();
+        assert_eq!((w, h), (W, H));
+        let want: Vec<u16> = (0..W * H).map(|i| u16::from(label(i / W))).collect();
+        assert!(data == want, "{depth}-bit: got values {:?}", data.iter().collect::<std::collections::BTreeSet<_>>());
+        let s = Scene::load(dir).unwrap_or_else(|e| panic!("{e}"));
+        assert!(s.warnings.is_empty(), "{depth}-bit: {:?}", s.warnings);
+    }
+}
+
 #[test]
 fn labels_naming_unknown_parts_warn() {
     let tmp = temp_dir("unknownpart");
