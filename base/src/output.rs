@@ -17,6 +17,9 @@
 //!   locks and remove folders, which a raw signal handler may not) that removes them and exits
 //!   with status 130. psc-base owns the process's SIGINT/SIGTERM handler: a program that needs
 //!   another must not install one with `ctrlc` itself;
+//! * a program that ends on another signal calls [`stop_and_remove_temporaries`] first (psc does
+//!   on SIGPIPE: a thread that writes to a closed pipe is held in the signal handler while another
+//!   thread removes the temporaries, then the process ends by SIGPIPE);
 //! * after SIGKILL nothing can run: temporaries have hidden names that say whose they are
 //!   (`.psc-tmp-<pid>-<n>-<name>`), and the next [`StagedDir::new`] or atomic write to the same
 //!   destination removes those whose process is gone (Linux: no `/proc/<pid>`).
@@ -115,17 +118,27 @@ fn install_handler() {
         // If another handler is already installed (a program that ignored the note in the
         // module docs), temporaries are still removed on error, on drop and by the next run.
         let _ = ctrlc::set_handler(|| {
-            INTERRUPTED.store(true, Ordering::SeqCst);
-            remove_live_temporaries();
+            stop_and_remove_temporaries();
             std::process::exit(INTERRUPTED_EXIT_CODE);
         });
     });
 }
 
 /// True once SIGINT or SIGTERM has arrived (the process is about to exit with
-/// [`INTERRUPTED_EXIT_CODE`]): long loops may stop early.
+/// [`INTERRUPTED_EXIT_CODE`]), or the program is ending on another signal
+/// ([`stop_and_remove_temporaries`]): long loops may stop early.
 pub fn interrupted() -> bool {
     INTERRUPTED.load(Ordering::SeqCst)
+}
+
+/// What the SIGINT/SIGTERM handler does before it exits, for a program that ends the process on
+/// another signal itself (psc on SIGPIPE, when the reader of its output has gone): from now on
+/// [`interrupted`] is true, so a writer whose temporary vanishes waits for the end instead of
+/// racing it with an error of its own, and every registered temporary is removed. The caller
+/// then ends the process, from a thread that may take locks (not a raw signal handler).
+pub fn stop_and_remove_temporaries() {
+    INTERRUPTED.store(true, Ordering::SeqCst);
+    remove_live_temporaries();
 }
 
 /// Remove every registered temporary now (what the SIGINT/SIGTERM handler does). Writers still

@@ -88,20 +88,84 @@ impl From<Usage> for Error {
 }
 
 /// Rust ignores SIGPIPE, so `psc library | head` would panic inside `println!` once the reader
-/// goes away; a command-line tool should simply stop, as every Unix tool does.
+/// goes away; a command-line tool should simply stop, as every Unix tool does. Stopping at once
+/// (the default action) would leave the staged output folders and temporaries of
+/// `psc_base::output` behind (`psc fit ... 2>&1 | head`: the progress log is on stderr), so the
+/// handler only holds the writing thread and wakes `sigpipe_thread`, which removes them and
+/// then ends the process by SIGPIPE after all, with the status a shell expects (141).
 #[cfg(unix)]
-fn restore_default_sigpipe() {
-    // SAFETY: called once at start-up, before any other thread exists; SIG_DFL is a valid handler.
-    unsafe {
-        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+mod sigpipe {
+    use std::io::Read;
+    use std::os::fd::IntoRawFd;
+    use std::os::unix::net::UnixStream;
+    use std::sync::atomic::{AtomicI32, Ordering};
+
+    /// The write end of the wake-up channel (set before the handler is installed).
+    static WAKE: AtomicI32 = AtomicI32::new(-1);
+
+    extern "C" fn on_sigpipe(_: libc::c_int) {
+        let fd = WAKE.load(Ordering::SeqCst);
+        // SAFETY: `write` and `pause` are async-signal-safe; `fd` is the write end of a socket
+        // pair that stays open for the life of the process, and the buffer is a live byte. The
+        // thread never returns from here: the process ends by SIGPIPE from `sigpipe_thread`
+        // (returning would hand `println!` an EPIPE to panic on).
+        unsafe {
+            libc::write(fd, [1u8].as_ptr().cast(), 1);
+            loop {
+                libc::pause();
+            }
+        }
+    }
+
+    /// Waits for the handler's byte, removes the temporaries, then dies by SIGPIPE.
+    fn sigpipe_thread(mut wake: UnixStream) {
+        let mut byte = [0u8; 1];
+        if wake.read_exact(&mut byte).is_err() {
+            return;
+        }
+        psc_base::output::stop_and_remove_temporaries();
+        // SAFETY: restoring the default action and raising the signal on this thread (which
+        // does not block it) ends the process as SIGPIPE always did; both are plain libc calls.
+        unsafe {
+            libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+            libc::raise(libc::SIGPIPE);
+        }
+        std::process::exit(128 + libc::SIGPIPE);
+    }
+
+    /// Called once at start-up, before any other thread exists. If the channel or the thread
+    /// cannot be made, SIGPIPE gets its default action (stop at once, temporaries left for the
+    /// next run to remove).
+    pub fn install() {
+        let handler = match UnixStream::pair() {
+            Ok((read, write)) => {
+                WAKE.store(write.into_raw_fd(), Ordering::SeqCst);
+                match std::thread::Builder::new().name("sigpipe".into()).spawn(move || sigpipe_thread(read)) {
+                    Ok(_) => on_sigpipe as extern "C" fn(libc::c_int) as libc::sighandler_t,
+                    Err(_) => libc::SIG_DFL,
+                }
+            }
+            Err(_) => libc::SIG_DFL,
+        };
+        // SAFETY: called once at start-up, before any thread but `sigpipe_thread` exists (which
+        // does not touch signal dispositions until the handler has run); the handler is an
+        // `extern "C"` function that only makes async-signal-safe calls, or SIG_DFL.
+        unsafe {
+            libc::signal(libc::SIGPIPE, handler);
+        }
     }
 }
 
+#[cfg(unix)]
+fn handle_sigpipe() {
+    sigpipe::install();
+}
+
 #[cfg(not(unix))]
-fn restore_default_sigpipe() {}
+fn handle_sigpipe() {}
 
 fn main() -> ExitCode {
-    restore_default_sigpipe();
+    handle_sigpipe();
     let cli = Cli::parse();
     let result: Result<ExitCode, Error> = match cli.command {
         Command::Compile(args) => compile::run(args).map_err(Error::from),

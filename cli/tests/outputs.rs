@@ -134,3 +134,50 @@ fn an_output_folder_that_holds_an_input_is_refused_even_with_force() {
     assert_eq!(names(&mine), ["keep.txt"]);
     assert_eq!(names(&scene), before);
 }
+
+/// A reader that goes away (`psc fit ... 2>&1 | head -1`, `psc library | head -1`) stops psc as
+/// SIGPIPE stops any Unix tool (killed by the signal: a non-zero status, 141 in a shell), and
+/// its staged output goes with it: the fit's staging folder was left behind as `.psc-tmp-*`,
+/// because the default action ended the process before anything could remove it.
+#[cfg(unix)]
+#[test]
+fn a_closed_pipe_stops_psc_and_leaves_no_temporaries() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::Stdio;
+    let tmp = scratch("sigpipe");
+    let dir = tmp.path();
+    let out = dir.join("fit");
+    let room = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/room");
+    let fit = [
+        "fit",
+        room.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--iterations",
+        "5",
+        "--refit-rounds",
+        "0",
+        "--texture-size",
+        "0",
+        "--render-spp",
+        "0",
+    ];
+    // The fit's progress log (stderr, not a terminal) starts once its output folder is staged;
+    // stdout closed too (`library` prints its table there, with nothing staged).
+    for (args, closed) in [(&fit[..], "stderr"), (&["library"][..], "stdout")] {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_psc"));
+        command.args(args).stdin(Stdio::null());
+        if closed == "stderr" {
+            command.stdout(Stdio::null()).stderr(Stdio::piped());
+        } else {
+            command.stdout(Stdio::piped()).stderr(Stdio::null());
+        }
+        let mut child = command.spawn().expect("psc runs");
+        // Close the read end before psc writes anything.
+        drop(child.stderr.take());
+        drop(child.stdout.take());
+        let status = child.wait().unwrap();
+        assert_eq!(status.signal(), Some(libc::SIGPIPE), "{args:?} with {closed} closed: {status:?}");
+        assert_eq!(names(dir), Vec::<String>::new(), "{args:?} with {closed} closed left files behind");
+    }
+}
