@@ -81,9 +81,8 @@ pub fn read_rgb(path: &Path, srgb: bool) -> Result<RgbImage, RenderError> {
 }
 
 /// Read a part-label image: 8- or 16-bit grayscale PNG (or 1-, 2-, 4-bit), values returned as
-/// stored. Anything
-/// else is refused, saying what the file holds as stored: the decoder expands a palette PNG to
-/// RGB, so its decoded type would misname it.
+/// stored. Anything else is refused, saying what the file holds as stored: the decoder expands
+/// a palette PNG to RGB, so its decoded type would misname it.
 pub fn read_labels(path: &Path) -> Result<(usize, usize, Vec<u16>), RenderError> {
     check_decodable(path, 4)?;
     let stored = png_header(path);
