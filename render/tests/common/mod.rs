@@ -121,10 +121,9 @@ pub fn crc32(bytes: &[u8]) -> u32 {
     !c
 }
 
-/// A PNG of any colour type and bit depth the encoders here do not write (palette, 1/2/4-bit
-/// grayscale): `rows` are the packed scanlines, `plte` the palette (RGB triples) if any. The
-/// image data is zlib with stored (uncompressed) blocks.
-pub fn png_bytes(w: u32, h: u32, bit_depth: u8, color_type: u8, plte: Option<&[u8]>, rows: &[Vec<u8>]) -> Vec<u8> {
+/// A PNG file: the signature, an IHDR for `w`×`h` at `bit_depth` and `color_type`, then
+/// `chunks` (kind, data) and IEND, each with its CRC.
+pub fn png_from_chunks(w: u32, h: u32, bit_depth: u8, color_type: u8, chunks: &[(&[u8; 4], &[u8])]) -> Vec<u8> {
     let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
     let mut chunk = |kind: &[u8], data: &[u8]| {
         out.extend_from_slice(&(data.len() as u32).to_be_bytes());
@@ -138,9 +137,17 @@ pub fn png_bytes(w: u32, h: u32, bit_depth: u8, color_type: u8, plte: Option<&[u
     ihdr.extend_from_slice(&h.to_be_bytes());
     ihdr.extend_from_slice(&[bit_depth, color_type, 0, 0, 0]);
     chunk(b"IHDR", &ihdr);
-    if let Some(p) = plte {
-        chunk(b"PLTE", p);
+    for (kind, data) in chunks {
+        chunk(&kind[..], data);
     }
+    chunk(b"IEND", &[]);
+    out
+}
+
+/// A PNG of any colour type and bit depth the encoders here do not write (palette, 1/2/4-bit
+/// grayscale): `rows` are the packed scanlines, `plte` the palette (RGB triples) if any. The
+/// image data is zlib with stored (uncompressed) blocks.
+pub fn png_bytes(w: u32, h: u32, bit_depth: u8, color_type: u8, plte: Option<&[u8]>, rows: &[Vec<u8>]) -> Vec<u8> {
     let raw: Vec<u8> = rows.iter().flat_map(|r| std::iter::once(0u8).chain(r.iter().copied())).collect();
     let mut z = vec![0x78, 0x01];
     let blocks: Vec<&[u8]> = raw.chunks(65_535).collect();
@@ -156,7 +163,7 @@ pub fn png_bytes(w: u32, h: u32, bit_depth: u8, color_type: u8, plte: Option<&[u
         b = (b + a) % 65_521;
     }
     z.extend_from_slice(&((b << 16) | a).to_be_bytes());
-    chunk(b"IDAT", &z);
-    chunk(b"IEND", &[]);
-    out
+    let mut chunks: Vec<(&[u8; 4], &[u8])> = plte.map(|p| (b"PLTE", p)).into_iter().collect();
+    chunks.push((b"IDAT", &z));
+    png_from_chunks(w, h, bit_depth, color_type, &chunks)
 }
