@@ -127,14 +127,10 @@ pub fn write(
 /// Reads the state a previous fit saved in `<dir>/result.json` (for `psc fit --resume` and `--refit-only`).
 pub fn read_previous(dir: &Path) -> Result<PreviousFit, FitError> {
     let path = dir.join("result.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| {
-        FitError::Input(format!(
-            "{}: {e} (--resume and --refit-only start from the output of an earlier `psc fit`)",
-            path.display()
-        ))
+    // The shared reader: the JSON size cap, duplicate keys refused, a byte-order mark skipped.
+    let value: Value = psc_runtime::json::read_file(&path).map_err(|e| {
+        FitError::Input(format!("{e} (--resume and --refit-only start from the output of an earlier `psc fit`)"))
     })?;
-    let value: Value = serde_json::from_str(&text)
-        .map_err(|e| FitError::Input(format!("{}:{}:{}: {e}", path.display(), e.line(), e.column())))?;
     let state = value
         .get("fit_state")
         .cloned()

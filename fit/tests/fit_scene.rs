@@ -231,6 +231,13 @@ fn resume_continues_every_part_from_its_fitted_state() {
     let opts = OutputOptions { texture_size: 0, render_spp: 0, force: true, seed: 7, command: "test".into() };
     output::write(&out, &scene, &library, &first, &opts).unwrap();
     let previous = output::read_previous(&out).unwrap();
+    // A result.json an editor saved with a byte-order mark reads the same.
+    let bom = scratch.path().join("bom");
+    std::fs::create_dir(&bom).unwrap();
+    let text = std::fs::read(out.join("result.json")).unwrap();
+    std::fs::write(bom.join("result.json"), [b"\xEF\xBB\xBF".as_slice(), &text].concat()).unwrap();
+    let with_bom = output::read_previous(&bom).unwrap();
+    assert_eq!(serde_json::to_value(&with_bom).unwrap(), serde_json::to_value(&previous).unwrap());
 
     let fitted = |r: &psc_fit::pipeline::FitResult| -> Vec<(String, String, f32)> {
         r.parts

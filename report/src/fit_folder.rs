@@ -69,7 +69,9 @@ pub fn file_stem(name: &str) -> String {
 /// The JSON file at `path`; else why not (the caller names the file).
 fn read_json(path: &Path) -> Result<Value, String> {
     let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
-    serde_json::from_str(&text).map_err(|e| format!("not valid JSON: {e}"))
+    // A byte-order mark (an editor's, on a hand-edited file) is not JSON: skipped, as every
+    // other reader of psc's JSON skips it.
+    serde_json::from_str(text.strip_prefix('\u{feff}').unwrap_or(&text)).map_err(|e| format!("not valid JSON: {e}"))
 }
 
 /// The file `relative` of the fit folder `dir`; else why not, for the page, naming it by its

@@ -228,3 +228,22 @@ fn decode_base64(text: &str) -> Vec<u8> {
     }
     out
 }
+
+/// JSON files of the folder that an editor saved with a byte-order mark are read as without
+/// one: the page is the same.
+#[test]
+fn files_saved_with_a_byte_order_mark_read_the_same() {
+    let tmp = temp("bom");
+    let (plain, marked) = (tmp.path().join("fitted"), tmp.path().join("marked"));
+    fit_folder(&plain);
+    fit_folder(&marked);
+    for file in ["result.json", "parts/floor.json", "materials.json", "lights.json"] {
+        let text = std::fs::read(marked.join(file)).unwrap();
+        std::fs::write(marked.join(file), [b"\xEF\xBB\xBF".as_slice(), &text].concat()).unwrap();
+    }
+    let page = |dir: &Path| {
+        let options = ReportOptions { shown_as: Some(tmp.path().join("shown")), ..Default::default() };
+        std::fs::read_to_string(write_report_with(dir, &options).unwrap()).unwrap()
+    };
+    assert_eq!(page(&marked), page(&plain));
+}
