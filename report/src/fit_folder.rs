@@ -68,10 +68,10 @@ pub fn file_stem(name: &str) -> String {
 
 /// The JSON file at `path`; else why not (the caller names the file).
 fn read_json(path: &Path) -> Result<Value, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
-    // A byte-order mark (an editor's, on a hand-edited file) is not JSON: skipped, as every
-    // other reader of psc's JSON skips it.
-    serde_json::from_str(text.strip_prefix('\u{feff}').unwrap_or(&text)).map_err(|e| format!("not valid JSON: {e}"))
+    // The renderer's reader of JSON text: the size cap, and a byte-order mark (an editor's, on
+    // a hand-edited file) skipped.
+    let text = psc_render::json::read_text(path, "a JSON file").map_err(|e| e.to_string())?;
+    serde_json::from_str(&text).map_err(|e| format!("not valid JSON: {e}"))
 }
 
 /// The file `relative` of the fit folder `dir`; else why not, for the page, naming it by its
