@@ -80,71 +80,69 @@ pub fn read_rgb(path: &Path, srgb: bool) -> Result<RgbImage, RenderError> {
     Ok(RgbImage { width: w, height: h, data })
 }
 
-/// Read a part-label image: 8- or 16-bit grayscale PNG (or 1-, 2-, 4-bit), values returned as
-/// stored. Anything else is refused, saying what the file holds as stored: the decoder expands
-/// a palette PNG to RGB, so its decoded type would misname it.
+/// Read a part-label image, returning its values as stored. A PNG may be grayscale (1, 2, 4, 8 or
+/// 16 bit) or indexed (1, 2, 4 or 8 bit), whose index is the label, as segmentation datasets
+/// store label maps (the palette's colours are ignored); other formats must decode to 8- or
+/// 16-bit grayscale. Anything else is refused, saying what the file holds.
 pub fn read_labels(path: &Path) -> Result<(usize, usize, Vec<u16>), RenderError> {
     check_decodable(path, 4)?;
-    let stored = png_header(path);
+    // By extension, as `image` chose the decoder that read the size just checked.
+    if image::ImageFormat::from_path(path).ok() == Some(image::ImageFormat::Png) {
+        return read_png_labels(path);
+    }
     let dynimg = image::open(path).map_err(|e| RenderError::image(path, e))?;
     let (w, h) = (dynimg.width() as usize, dynimg.height() as usize);
     let data = match dynimg {
-        image::DynamicImage::ImageLuma8(b) => {
-            // The decoder scales 1-, 2- and 4-bit gray up to 8 bits (a 4-bit 3 becomes 51);
-            // labels are the stored values, so undo the (exact) scaling.
-            let scale = match stored {
-                Some(PngHeader { bit_depth: d @ (1 | 2 | 4), color_type: 0 }) => 255 / ((1u8 << d) - 1),
-                _ => 1,
-            };
-            b.into_raw().into_iter().map(|v| u16::from(v / scale)).collect()
-        }
+        image::DynamicImage::ImageLuma8(b) => b.into_raw().into_iter().map(u16::from).collect(),
         image::DynamicImage::ImageLuma16(b) => b.into_raw(),
-        other => {
-            let kind = match stored {
-                Some(s) => s.describe(),
-                None => describe_color(other.color()),
-            };
-            return Err(RenderError::image(
-                path,
-                format!(
-                    "a label image must be 8- or 16-bit grayscale (the label values as gray levels), this one is {kind}"
-                ),
-            ));
+        other => return Err(not_a_label_image(path, &describe_color(other.color()))),
+    };
+    Ok((w, h, data))
+}
+
+/// The samples of a grayscale or indexed PNG, through `png` rather than `image`: `image` expands
+/// a palette to RGB and scales 1-, 2- and 4-bit gray to 8 bits, losing the stored values.
+fn read_png_labels(path: &Path) -> Result<(usize, usize, Vec<u16>), RenderError> {
+    let failed = |e: png::DecodingError| RenderError::image(path, format!("PNG decoding failed: {e}"));
+    let file = std::fs::File::open(path).map_err(|e| RenderError::io(path, e))?;
+    // The decoder's default is no transformations: samples come out as stored.
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file)).read_info().map_err(failed)?;
+    let depth = reader.info().bit_depth as usize;
+    let refused = match reader.info().color_type {
+        png::ColorType::Grayscale | png::ColorType::Indexed => None,
+        png::ColorType::GrayscaleAlpha => Some("grayscale with alpha"),
+        png::ColorType::Rgb => Some("RGB colour"),
+        png::ColorType::Rgba => Some("RGBA colour"),
+    };
+    if let Some(kind) = refused {
+        return Err(not_a_label_image(path, &format!("{depth}-bit {kind}")));
+    }
+    let size = reader.output_buffer_size().ok_or_else(|| failed(png::DecodingError::LimitsExceeded))?;
+    // Zeroed: deinterlacing sub-byte samples ORs them into place.
+    let mut buf = vec![0; size];
+    let frame = reader.next_frame(&mut buf).map_err(failed)?;
+    let (w, h) = (frame.width as usize, frame.height as usize);
+    let rows = buf[..frame.buffer_size()].chunks_exact(frame.line_size);
+    let data = match depth {
+        16 => rows.flat_map(|r| r.chunks_exact(2).map(|s| u16::from_be_bytes([s[0], s[1]]))).collect(),
+        bits => {
+            // Samples are packed most significant bit first, each row padded to whole bytes.
+            let mask = (1u16 << bits) - 1;
+            rows.flat_map(|r| (0..w).map(move |x| u16::from(r[x * bits / 8] >> (8 - bits - x * bits % 8)) & mask))
+                .collect()
         }
     };
     Ok((w, h, data))
 }
 
-/// What a PNG stores, from its header (IHDR): the decoder reports what it expands it to.
-#[derive(Clone, Copy, Debug)]
-struct PngHeader {
-    bit_depth: u8,
-    /// 0 grayscale, 2 RGB, 3 indexed (palette), 4 grayscale + alpha, 6 RGBA.
-    color_type: u8,
-}
-
-impl PngHeader {
-    fn describe(self) -> String {
-        let d = self.bit_depth;
-        match self.color_type {
-            0 => format!("{d}-bit grayscale"),
-            2 => format!("{d}-bit RGB colour"),
-            3 => format!("indexed colour (a palette PNG, {d}-bit indices)"),
-            4 => format!("{d}-bit grayscale with alpha"),
-            6 => format!("{d}-bit RGBA colour"),
-            c => format!("PNG colour type {c}"),
-        }
-    }
-}
-
-/// The header of `path` if it is a PNG (None for other formats or unreadable files: the
-/// decoder then reports them).
-fn png_header(path: &Path) -> Option<PngHeader> {
-    use std::io::Read;
-    let mut head = [0u8; 26];
-    std::fs::File::open(path).ok()?.read_exact(&mut head).ok()?;
-    (head[..8] == *b"\x89PNG\r\n\x1a\n" && head[12..16] == *b"IHDR")
-        .then_some(PngHeader { bit_depth: head[24], color_type: head[25] })
+fn not_a_label_image(path: &Path, kind: &str) -> RenderError {
+    RenderError::image(
+        path,
+        format!(
+            "a label image must be grayscale (the labels as gray levels) or a palette PNG (the labels as \
+             palette indices), this one is {kind}"
+        ),
+    )
 }
 
 /// A decoded colour type in words.

@@ -123,23 +123,145 @@ fn colour_label_image_is_an_error() {
     assert!(msg.contains("grayscale"), "{msg}");
 }
 
-/// A palette PNG is named as one: the decoder expands it to RGB, and the error said `Rgb8`.
+/// A palette of `n` colours none of which is the gray level of its index, nor has it as a
+/// channel: a reader that took colours for labels gets other values.
+fn palette(n: usize) -> Vec<u8> {
+    (0..n as u8).flat_map(|i| [100 + i, 50 + i, 200 - i]).collect()
+}
+
+/// `pixels` (`w` wide) written as a `depth`-bit palette PNG, then read back as labels.
+fn palette_labels(dir: &std::path::Path, w: usize, depth: u8, interlaced: bool, pixels: &[u8]) -> Vec<u16> {
+    let h = pixels.len() / w;
+    let plte = palette(usize::from(*pixels.iter().max().unwrap()) + 1);
+    let png = if interlaced {
+        interlaced_png_bytes(w, h, depth, 3, Some(&plte), pixels)
+    } else {
+        let rows: Vec<Vec<u8>> = pixels.chunks(w).map(|r| pack_row(r, depth)).collect();
+        png_bytes(w as u32, h as u32, depth, 3, Some(&plte), &rows)
+    };
+    let path = dir.join("labels.png");
+    std::fs::write(&path, png).unwrap();
+    let (rw, rh, data) = psc_render::image_io::read_labels(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!((rw, rh), (w, h), "{depth}-bit");
+    data
+}
+
+/// `w` × `h` labels cycling through the `n` values (every value when w + h - 1 ≥ n), each row
+/// shifted by one so rows read from the wrong place give other values.
+fn diagonal(w: usize, h: usize, n: usize) -> Vec<u8> {
+    (0..w * h).map(|i| ((i % w + i / w) % n) as u8).collect()
+}
+
+fn widened(v: &[u8]) -> Vec<u16> {
+    v.iter().copied().map(u16::from).collect()
+}
+
+/// A palette PNG, as PASCAL VOC and ADE20K store label maps, gives its indices: it was refused,
+/// as `image` expands a palette to RGB.
 #[test]
-fn palette_label_image_is_named_as_such() {
+fn palette_label_image_is_read_by_index() {
     let tmp = temp_dir("labelpalette");
+    let pixels = diagonal(7, 5, 4);
+    assert_eq!(palette_labels(tmp.path(), 7, 8, false, &pixels), widened(&pixels));
+}
+
+/// 4-, 2- and 1-bit indices are unpacked most significant bit first, and each row starts on a
+/// byte: 13 pixels end in padding bits at each of these depths.
+#[test]
+fn sub_byte_palette_label_images_are_unpacked_row_by_row() {
+    let tmp = temp_dir("labelpalettebits");
+    for depth in [4u8, 2, 1] {
+        let pixels = diagonal(13, 5, 1 << depth);
+        assert_eq!(palette_labels(tmp.path(), 13, depth, false, &pixels), widened(&pixels), "{depth}-bit");
+    }
+}
+
+/// An interlaced (Adam7) label PNG gives its pixels in place, sub-byte indices included.
+#[test]
+fn interlaced_palette_label_images_are_deinterlaced() {
+    let tmp = temp_dir("labelinterlaced");
+    for depth in [8u8, 4, 1] {
+        // 13 × 11: every one of the seven passes has pixels, and rows end in padding bits.
+        let pixels = diagonal(13, 11, 1 << depth.min(4));
+        assert_eq!(palette_labels(tmp.path(), 13, depth, true, &pixels), widened(&pixels), "{depth}-bit");
+    }
+}
+
+/// Colour label images are still refused, saying what the file stores.
+#[test]
+fn colour_label_images_are_refused_saying_what_they_hold() {
+    let tmp = temp_dir("labelcolour");
+    let must = "a label image must be grayscale (the labels as gray levels) or a palette PNG (the labels as \
+                palette indices), this one is";
+    let rgb = tmp.path().join("rgb.png");
+    psc_render::image_io::write_rgb(&rgb, 4, 3, &[[0.2; 3]; 12]).unwrap();
+    let gray_alpha = tmp.path().join("gray_alpha.png");
+    std::fs::write(&gray_alpha, png_bytes(2, 1, 8, 4, None, &[vec![1, 255, 2, 255]])).unwrap();
+    let rgba16 = tmp.path().join("rgba16.png");
+    std::fs::write(&rgba16, png_bytes(1, 1, 16, 6, None, &[vec![0; 8]])).unwrap();
+    // Not a PNG: decoded by `image`, and named from what it decodes to.
+    let jpeg = tmp.path().join("rgb.jpg");
+    image::RgbImage::from_pixel(4, 3, image::Rgb([200, 40, 40])).save(&jpeg).unwrap();
+    for (path, kind) in [
+        (&rgb, "8-bit RGB colour"),
+        (&gray_alpha, "8-bit grayscale with alpha"),
+        (&rgba16, "16-bit RGBA colour"),
+        (&jpeg, "8-bit RGB colour"),
+    ] {
+        let msg = psc_render::image_io::read_labels(path).unwrap_err().to_string();
+        assert_eq!(msg, format!("{}: {must} {kind}", path.display()));
+    }
+}
+
+/// A scene whose label image is a palette PNG loads, its indices naming the parts.
+#[test]
+fn palette_label_image_names_the_parts_of_a_scene() {
+    let tmp = temp_dir("scenepalette");
     let dir = tmp.path();
     write_scene(dir);
-    let rows: Vec<Vec<u8>> = (0..H).map(|y| vec![if y > H / 2 { 1 } else { 2 }; W]).collect();
-    let palette: Vec<u8> = (0..4u8).flat_map(|i| [i * 60, i * 60, i * 60]).collect();
-    let png = png_bytes(W as u32, H as u32, 8, 3, Some(&palette), &rows);
+    // Unlabelled top rows, walls, a crate in the middle, floor below (GOOD_LABELS' 1, 2, 3).
+    let label = |x: usize, y: usize| match (x, y) {
+        (_, 0..3) => 0u8,
+        (15..25, 12..18) => 3,
+        (_, y) if y > H / 2 => 1,
+        _ => 2,
+    };
+    let rows: Vec<Vec<u8>> = (0..H).map(|y| (0..W).map(|x| label(x, y)).collect()).collect();
+    let png = png_bytes(W as u32, H as u32, 8, 3, Some(&palette(4)), &rows);
     std::fs::write(dir.join("views/view0_parts.png"), png).unwrap();
-    let msg = load_err(dir).to_string();
-    assert!(msg.contains("view0_parts.png: a label image must be 8- or 16-bit grayscale"), "{msg}");
-    assert!(msg.contains("this one is indexed colour (a palette PNG, 8-bit indices)"), "{msg}");
-    // Other kinds are named in words too, not as the decoder's Rust names.
-    psc_render::image_io::write_rgb(&dir.join("views/view0_parts.png"), W, H, &vec![[0.2; 3]; W * H]).unwrap();
-    let msg = load_err(dir).to_string();
-    assert!(msg.contains("this one is 8-bit RGB colour") && !msg.contains("Rgb8"), "{msg}");
+    let s = Scene::load(dir).unwrap_or_else(|e| panic!("{e}"));
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    let view = &s.views[0];
+    let part_of = |l: u16| view.part_labels.get(&l).and_then(|name| s.mesh.part_index(name));
+    let got: Vec<Option<usize>> = view.labels.as_ref().unwrap().data.iter().map(|&l| part_of(l)).collect();
+    let want: Vec<Option<usize>> =
+        (0..W * H).map(|i| [None, Some(0), Some(2), Some(3)][usize::from(label(i % W, i / W))]).collect();
+    assert_eq!(got, want, "part ids (floor 0, walls 2, crate 3)");
+}
+
+/// A truncated or corrupt label PNG is an error naming the file, wherever it is cut.
+#[test]
+fn truncated_or_corrupt_palette_label_image_is_an_error_naming_the_file() {
+    let tmp = temp_dir("labeltruncated");
+    let path = tmp.path().join("labels.png");
+    let pixels = diagonal(7, 5, 4);
+    let rows: Vec<Vec<u8>> = pixels.chunks(7).map(|r| pack_row(r, 8)).collect();
+    let png = png_bytes(7, 5, 8, 3, Some(&palette(4)), &rows);
+    std::fs::write(&path, &png).unwrap();
+    assert_eq!(psc_render::image_io::read_labels(&path).unwrap_or_else(|e| panic!("{e}")).2, widened(&pixels));
+    // The pixel data ends 4 bytes (the CRC) before IEND's 12.
+    let mut broken: Vec<Vec<u8>> = (0..png.len() - 16).map(|n| png[..n].to_vec()).collect();
+    let mut flipped = png.clone();
+    flipped[png.len() - 20] ^= 0x40; // in the last image data bytes: a CRC mismatch
+    broken.push(flipped);
+    for bytes in broken {
+        std::fs::write(&path, &bytes).unwrap();
+        let msg = match psc_render::image_io::read_labels(&path) {
+            Ok(_) => panic!("{} of {} bytes read as labels", bytes.len(), png.len()),
+            Err(e) => e.to_string(),
+        };
+        assert!(msg.starts_with(&format!("{}: ", path.display())), "{} bytes: {msg}", bytes.len());
+    }
 }
 
 /// A 1-, 2- or 4-bit grayscale label image gives the values it stores: the decoder scales them

@@ -167,3 +167,44 @@ pub fn png_bytes(w: u32, h: u32, bit_depth: u8, color_type: u8, plte: Option<&[u
     chunks.push((b"IDAT", &z));
     png_from_chunks(w, h, bit_depth, color_type, &chunks)
 }
+
+/// One scanline of `values` at `bit_depth` (1, 2, 4 or 8): packed most significant bit first,
+/// the last byte padded with zero bits.
+pub fn pack_row(values: &[u8], bit_depth: u8) -> Vec<u8> {
+    let per_byte = 8 / bit_depth as usize;
+    values
+        .chunks(per_byte)
+        .map(|c| c.iter().enumerate().fold(0u8, |acc, (i, &v)| acc | v << (8 - bit_depth as usize * (i + 1))))
+        .collect()
+}
+
+/// `png_bytes` for an Adam7-interlaced image of `pixels` (row-major, `w` wide, one value per
+/// pixel, packed at `bit_depth`).
+pub fn interlaced_png_bytes(
+    w: usize,
+    h: usize,
+    bit_depth: u8,
+    color_type: u8,
+    plte: Option<&[u8]>,
+    pixels: &[u8],
+) -> Vec<u8> {
+    // (x0, y0, dx, dy) of the seven passes; a pass without columns has no scanlines at all.
+    const PASSES: [(usize, usize, usize, usize); 7] =
+        [(0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2), (0, 1, 1, 2)];
+    let mut rows = Vec::new();
+    for (x0, y0, dx, dy) in PASSES {
+        if x0 >= w {
+            continue;
+        }
+        for y in (y0..h).step_by(dy) {
+            let values: Vec<u8> = (x0..w).step_by(dx).map(|x| pixels[y * w + x]).collect();
+            rows.push(pack_row(&values, bit_depth));
+        }
+    }
+    let mut png = png_bytes(w as u32, h as u32, bit_depth, color_type, plte, &rows);
+    // IHDR comes first: its last data byte (offset 28) is the interlace method, its CRC follows.
+    png[28] = 1;
+    let crc = crc32(&png[12..29]);
+    png[29..33].copy_from_slice(&crc.to_be_bytes());
+    png
+}
