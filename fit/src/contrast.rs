@@ -25,6 +25,18 @@
 //! crop by `targets`) is added to its luma before smoothing. The field is a function of the
 //! pixel index only, so the loss is deterministic and its gradient exact.
 //!
+//! The noise estimate also counts a part's finest texture (dev_3's brick wall, its courses
+//! three pixels apart, reads 0.021 where the plain walls of the same photo read 0.006–0.009),
+//! so a candidate that has that texture gets it twice. Tried and not landed: a field of only
+//! what the candidate leaves unexplained, √(σ_p² − σ_c²) with σ_c the same estimator on the
+//! candidate (held fixed in the gradient), which the feature and statistics terms' dead zones
+//! already amount to. On the dev scenes at seed 0 it changed 10 graphs and made most figures
+//! worse: the true-geometry contrast over the pixel median's went from 0.39 / 0.53 / 0.46 /
+//! 0.33 to 0.33 / 0.58 / 0.51 / 0.41 on the input views (dev_1 … dev_4), its RMSE from
+//! 0.48–0.52 to 0.54–0.57 on dev_3, the lights of dev_1 and dev_2 from 13.2% and 0.1% off the
+//! truth's ratio to 23.1% and 10.4%, and dev_2's fit took twice as long; the brick wall kept its
+//! quartz.
+//!
 //! # Measured
 //! `psc eval --spp 128`, texture-contrast W1 of the fit over the pixel median's on the true
 //! geometry, dev_1 / dev_2 / dev_3 / dev_4 (fits at `--texture-size 256 --render-spp 32`), before
