@@ -328,7 +328,9 @@ pub fn write_outputs(eval: &Evaluation, eval_dir: &Path, json_copy: Option<&Path
         std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
         backend::write_png(&path, im.width, im.height, &im.render)?;
     }
-    backend::atomic_write(&staged.path().join("eval.json"), text.as_bytes())?;
+    // Inside the staged folder a plain write suffices: the folder appears whole or not at all.
+    let json = staged.path().join("eval.json");
+    std::fs::write(&json, &text).map_err(|e| io(&json, e))?;
     if let Some(path) = json_copy {
         backend::atomic_write(path, text.as_bytes())?;
     }
