@@ -110,7 +110,7 @@ pub fn dev_scene(name: &str) -> Option<PathBuf> {
 }
 
 /// CRC-32 (PNG's), bitwise.
-pub fn crc32(bytes: &[u8]) -> u32 {
+fn crc32(bytes: &[u8]) -> u32 {
     let mut c = 0xffff_ffffu32;
     for &b in bytes {
         c ^= b as u32;
@@ -124,6 +124,12 @@ pub fn crc32(bytes: &[u8]) -> u32 {
 /// A PNG file: the signature, an IHDR for `w`×`h` at `bit_depth` and `color_type`, then
 /// `chunks` (kind, data) and IEND, each with its CRC.
 pub fn png_from_chunks(w: u32, h: u32, bit_depth: u8, color_type: u8, chunks: &[(&[u8; 4], &[u8])]) -> Vec<u8> {
+    png_file(w, h, [bit_depth, color_type, 0], chunks)
+}
+
+/// `png_from_chunks` with the IHDR's bit depth, colour type and interlace method.
+fn png_file(w: u32, h: u32, format: [u8; 3], chunks: &[(&[u8; 4], &[u8])]) -> Vec<u8> {
+    let [bit_depth, color_type, interlace] = format;
     let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
     let mut chunk = |kind: &[u8], data: &[u8]| {
         out.extend_from_slice(&(data.len() as u32).to_be_bytes());
@@ -135,7 +141,7 @@ pub fn png_from_chunks(w: u32, h: u32, bit_depth: u8, color_type: u8, chunks: &[
     let mut ihdr = Vec::new();
     ihdr.extend_from_slice(&w.to_be_bytes());
     ihdr.extend_from_slice(&h.to_be_bytes());
-    ihdr.extend_from_slice(&[bit_depth, color_type, 0, 0, 0]);
+    ihdr.extend_from_slice(&[bit_depth, color_type, 0, 0, interlace]);
     chunk(b"IHDR", &ihdr);
     for (kind, data) in chunks {
         chunk(&kind[..], data);
@@ -148,6 +154,11 @@ pub fn png_from_chunks(w: u32, h: u32, bit_depth: u8, color_type: u8, chunks: &[
 /// grayscale): `rows` are the packed scanlines, `plte` the palette (RGB triples) if any. The
 /// image data is zlib with stored (uncompressed) blocks.
 pub fn png_bytes(w: u32, h: u32, bit_depth: u8, color_type: u8, plte: Option<&[u8]>, rows: &[Vec<u8>]) -> Vec<u8> {
+    png_of_rows(w, h, [bit_depth, color_type, 0], plte, rows)
+}
+
+/// `png_bytes` with the interlace method too (`rows`: the scanlines of every pass, in order).
+fn png_of_rows(w: u32, h: u32, format: [u8; 3], plte: Option<&[u8]>, rows: &[Vec<u8>]) -> Vec<u8> {
     let raw: Vec<u8> = rows.iter().flat_map(|r| std::iter::once(0u8).chain(r.iter().copied())).collect();
     let mut z = vec![0x78, 0x01];
     let blocks: Vec<&[u8]> = raw.chunks(65_535).collect();
@@ -165,7 +176,7 @@ pub fn png_bytes(w: u32, h: u32, bit_depth: u8, color_type: u8, plte: Option<&[u
     z.extend_from_slice(&((b << 16) | a).to_be_bytes());
     let mut chunks: Vec<(&[u8; 4], &[u8])> = plte.map(|p| (b"PLTE", p)).into_iter().collect();
     chunks.push((b"IDAT", &z));
-    png_from_chunks(w, h, bit_depth, color_type, &chunks)
+    png_file(w, h, format, &chunks)
 }
 
 /// One scanline of `values` at `bit_depth` (1, 2, 4 or 8): packed most significant bit first,
@@ -201,10 +212,5 @@ pub fn interlaced_png_bytes(
             rows.push(pack_row(&values, bit_depth));
         }
     }
-    let mut png = png_bytes(w as u32, h as u32, bit_depth, color_type, plte, &rows);
-    // IHDR comes first: its last data byte (offset 28) is the interlace method, its CRC follows.
-    png[28] = 1;
-    let crc = crc32(&png[12..29]);
-    png[29..33].copy_from_slice(&crc.to_be_bytes());
-    png
+    png_of_rows(w as u32, h as u32, [bit_depth, color_type, 1], plte, &rows)
 }
