@@ -7,6 +7,24 @@
 //! pixel of the photo (a downsampled crop would average fine patterns away, and a fit pixel
 //! covering many photo pixels would need many samples). The window has the aspect of the part's
 //! bounding box and is placed where it holds the most usable pixels.
+//!
+//! The price: the search window (1024 pixels, 32×32 on a square part) sees few repeats of a
+//! large pattern. The hold-out rooms' plank floors, with planks 15–25 pixels wide, got
+//! plaster, linoleum and concrete (g1, g2, g4), and g1's striped walls got stripes at the wrong
+//! angle. Measured and left out: the search view as the whole part, box-averaged by the
+//! smallest integer factor that brings it within the budget (the fit view still a window).
+//! g1's walls then got `printed_stripes`, level like the photo's, but its floor got no planks,
+//! and dev_3's rug, a brick photo, lost its subway tiles. Texture contrast over the pixel
+//! median's (true geometry, input / novel / relit), seed 0: dev_1 0.39 / 0.34 / 0.44 →
+//! 0.23 / 0.37 / 0.39, dev_2 0.53 / 0.42 / 0.73 → 0.51 / 0.36 / 0.69, dev_3 0.46 / 0.67 / 0.50
+//! → 0.53 / 0.76 / 0.57 (its mean-colour error 0.16 / 0.22 / 0.16 → 0.24 / 0.30 / 0.24),
+//! g1 0.25 / 0.27 / 0.25 → 0.25 / 0.32 / 0.26; the light ratios went from 13.2% to 16.9%
+//! (dev_1), 0.1% to 7.2% (dev_2) and 9.8% to 112% (g1) off the truth's. The whole part for
+//! both views did worse on dev_1 (0.33 / 0.51 / 0.34, lights 33.4% off). A search window as
+//! large as the fit's (4096 pixels) also gave g1's walls `printed_stripes` and its floor no
+//! planks: dev_1 0.38 / 0.34 / 0.39, g1 0.29 / 0.34 / 0.29, lights 26.4% and 111% off, and
+//! dev_1's fit took 1.7× as long. Whenever g1's walls got level stripes, its light solve gave
+//! one of its three lights about half its true ratio to the other two (see `light_solve.rs`).
 
 use psc_render::camera::Camera;
 use psc_render::geometry::SceneGeometry;
