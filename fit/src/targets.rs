@@ -22,9 +22,9 @@
 //! (dev_1), 0.1% to 7.2% (dev_2) and 9.8% to 112% (g1) off the truth's. The whole part for
 //! both views did worse on dev_1 (0.33 / 0.51 / 0.34, lights 33.4% off). A search window as
 //! large as the fit's (4096 pixels) also gave g1's walls `printed_stripes` and its floor no
-//! planks: dev_1 0.38 / 0.34 / 0.39, g1 0.29 / 0.34 / 0.29, lights 26.4% and 111% off, and
-//! dev_1's fit took 1.7× as long. Whenever g1's walls got level stripes, its light solve gave
-//! one of its three lights about half its true ratio to the other two (see `light_solve.rs`).
+//! planks: dev_1 0.38 / 0.34 / 0.39, g1 0.29 / 0.34 / 0.29, lights 26.4% and 111% off.
+//! Whenever g1's walls got level stripes, its light solve gave one of its three lights about
+//! half its true ratio to the other two (see `light_solve.rs`).
 
 use psc_render::camera::Camera;
 use psc_render::geometry::SceneGeometry;
