@@ -19,8 +19,8 @@
 //! its fitted state re-scored by a one-iteration `--resume`), caps of 2, 4 and 16 per axis give
 //! a loss of 0.0209, 0.0177 and 0.0188 and a statistics term of 0.0059, 0.0074 and 0.0087 (the
 //! grain's spread). Measured and left out: caps of 8 (fit) and 4 (search). That wall left the
-//! range end (twill at log-scale 1.41), but dev_2's fit took 1.8× as long, and no target
-//! improved: texture contrast over the pixel median's (true geometry, input / novel / relit)
+//! range end (twill at log-scale 1.41), but dev_2's fit took 1.8× as long, and no missed
+//! target was met: texture contrast over the pixel median's (true geometry, input / novel / relit)
 //! went from 0.53 / 0.42 / 0.73 to 0.54 / 0.51 / 0.67 on dev_2 and from 0.46 / 0.67 / 0.50 to
 //! 0.44 / 0.79 / 0.52 on dev_3, and dev_2's lights from 0.1% to 36.5% off the truth's ratio.
 //!

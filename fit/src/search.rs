@@ -24,9 +24,9 @@
 //! reached 0.0110 at log-scale −2.55, where one plank covers the floor. `wide_planks` reached
 //! 0.0193 and `strip_flooring` 0.0199 at log-scale 3.8 and 3.6, and `laminate_flooring` 0.0308
 //! at 4.25. Measured and left out: a search penalty on candidates whose rendered luma spread
-//! falls below 0.7 of the photo's above its noise. It changed nothing on dev_2 or g1, and on dev_1
-//! only the rug's log-scale (−3.42 to −3.47): the luma spread of a shaded part is mostly its
-//! shading, which a hidden pattern keeps.
+//! falls below 0.7 of the photo's above its noise. It changed nothing on dev_2 or g1, and on
+//! dev_1 only the rug's log-scale (−3.42 to −3.47): the luma spread of a shaded part is mostly
+//! its shading, which a hidden pattern keeps.
 //!
 //! Measured and left out: each candidate's deviations from its mean damped to the photo's
 //! spread before scoring (a contrast match beside the colour match, damping only; the state
