@@ -21,6 +21,7 @@
 
 mod backend;
 pub mod baselines;
+mod floor;
 pub mod metrics;
 mod report;
 mod truth;
@@ -31,6 +32,7 @@ use std::time::Instant;
 
 use psc_runtime::library::Library;
 
+pub use floor::UnseenFloor;
 pub use metrics::PartMetrics;
 pub use report::{check_eval_dir, write_outputs};
 pub use truth::ViewKind;
@@ -223,6 +225,9 @@ pub struct Evaluation {
     pub flat_changes: Vec<(f64, String)>,
     /// Parts no input view shows (the baselines give them the median of all labelled pixels).
     pub unseen_parts: Vec<String>,
+    /// Per (geometry, view kind) whose images show an unseen part: the floor those parts put
+    /// under the fitted / pixel-median ratios ([`floor`]).
+    pub unseen_floors: Vec<UnseenFloor>,
     /// The lights every method but the oracle renders under (scene order), and the true ones.
     pub fitted_lights: Vec<[f32; 3]>,
     pub true_lights: Vec<[f32; 3]>,
@@ -457,6 +462,7 @@ pub fn evaluate(
     }
     images.sort_by(|a, b| (a.geometry, a.kind, a.method, &a.view).cmp(&(b.geometry, b.kind, b.method, &b.view)));
     let rows = aggregate(&images);
+    let unseen_floors = floor::unseen_floors(&images, &rows, &unseen_parts);
     lap("metrics", &mut stage);
     warnings.sort();
     warnings.dedup();
@@ -470,6 +476,7 @@ pub fn evaluate(
         flat_roughness,
         flat_changes,
         unseen_parts,
+        unseen_floors,
         fitted_lights,
         true_lights: truth.lights.lights.clone(),
         input_exposure,

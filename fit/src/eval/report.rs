@@ -19,6 +19,9 @@ const RATIOS: [(Method, Method); 4] = [
     (Method::Oracle, Method::PixelMedian),
 ];
 
+/// The label of the rows of [`super::UnseenFloor`].
+const UNSEEN_FLOOR: &str = "floor of unseen parts";
+
 /// Per metric ratio of two rows; SSIM is compared as 1 − SSIM (lower is better, like the rest).
 pub fn ratio(num: &Row, den: &Row) -> [f64; 5] {
     [
@@ -106,6 +109,18 @@ impl Evaluation {
                     ));
                 }
             }
+            if let Some(f) = self.unseen_floors.iter().find(|f| (f.geometry, f.kind) == (geometry, kind)) {
+                s.push_str(&format!(
+                    "{} {:<23} {:>6.2}x {:>6.2}x {:>7.2}x {:>7.2}x {:>7}\n",
+                    label(),
+                    UNSEEN_FLOOR,
+                    f.rmse,
+                    f.mean_colour,
+                    f.colour_w1,
+                    f.contrast_w1,
+                    "-"
+                ));
+            }
         }
         if !self.flat_changes.is_empty() {
             let c: Vec<String> = self.flat_changes.iter().map(|(c, part)| format!("{c:.4} ({part})")).collect();
@@ -116,6 +131,11 @@ impl Evaluation {
                 "parts no input view shows (baselines use the median of all labelled pixels): {}\n",
                 self.unseen_parts.join(", ")
             ));
+            if !self.unseen_floors.is_empty() {
+                s.push_str(&format!(
+                    "  '{UNSEEN_FLOOR}' rows: fitted / pixel median with every photographed part scored 0; no fit of those parts goes below it\n"
+                ));
+            }
         }
         if self.fitted_lights.len() > 1 && self.fitted_lights.len() == self.true_lights.len() {
             // Albedo and light trade a global scale: compare each light's fitted/true ratio
@@ -268,6 +288,7 @@ impl Evaluation {
                 "pixel_median": "per part, per-channel median of the linear photo colours over its labelled pixels in the input views; roughness 0.7; flat normal",
                 "flat_fitted": "constant albedo per part from the pixel median, multiplied by photo mean / render mean per channel (linear; pixels of the input views labelled as the part, showing the part in the coarse model's G-buffer, the render clipped at 1 as the photo is; the fit's lights and exposures) and clamped to [0, 1], flat_iterations times; roughness: the fitted material's mean over the part's input-view pixels where materials.json names the part, else 0.7",
                 "oracle": "the true materials under the true lights",
+                "unseen_floors": "per geometry and view kind whose images show a part no input view shows: the fitted row with every other part's term 0, over the pixel median's row; the fitted / pixel median ratio cannot go below it by fitting the photographed parts",
                 "exposure": "renders of an input view under the fit's lights (every method but the oracle) are multiplied by the fit's RGB exposure of that view (lights.input_exposure); novel and relit views at 1",
             },
             "lights": {
@@ -287,6 +308,10 @@ impl Evaluation {
                 "unseen_parts": self.unseen_parts,
             },
             "rows": self.rows.iter().map(row).collect::<Vec<_>>(),
+            "unseen_floors": self.unseen_floors.iter().map(|f| json!({
+                "geometry": f.geometry.name(), "views": f.kind.name(), "rmse": num(f.rmse),
+                "mean_colour": num(f.mean_colour), "colour_w1": num(f.colour_w1), "contrast_w1": num(f.contrast_w1),
+            })).collect::<Vec<_>>(),
             "ratios": ratios,
             "parts": part_rows,
             "images": images,
