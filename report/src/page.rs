@@ -555,6 +555,14 @@ fn evaluation(fit: &FitFolder) -> String {
         s.push_str("<p>Ratios of errors (below 1: the numerator is better).</p>");
         s.push_str(&table(&header, &body));
     }
+    if let Some(floors) = eval.get("unseen_floors").and_then(Value::as_array).filter(|f| !f.is_empty()) {
+        let keys = ["geometry", "views", "rmse", "mean_colour", "colour_w1", "contrast_w1"];
+        let body: Vec<Vec<String>> = floors.iter().map(|f| keys.iter().map(|k| cell(f, k)).collect()).collect();
+        s.push_str(
+            "<p>Floor of the parts no input view shows: the fitted / pixel median ratio with every photographed part scored 0 (no fit of those parts goes below it).</p>",
+        );
+        s.push_str(&table(&keys, &body));
+    }
     s
 }
 

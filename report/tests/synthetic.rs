@@ -171,6 +171,38 @@ fn a_flat_colour_kept_over_the_contests_winner_is_explained() {
     assert!(!html.contains("not among the alternatives"));
 }
 
+#[test]
+fn the_evaluation_shows_its_rows_ratios_and_the_floor_of_unseen_parts() {
+    let tmp = temp("eval");
+    let dir = tmp.path();
+    fit_folder(dir);
+    let row = |method: &str, contrast: f64| {
+        json!({"geometry": "truth", "views": "novel", "method": method, "images": 2, "parts": 5,
+               "rmse": 0.05, "ssim": 0.6, "mean_colour": 0.02, "colour_w1": 0.02, "contrast_w1": contrast})
+    };
+    let eval = json!({
+        "format": "photoscene-eval/1",
+        "rows": [row("fitted", 0.0076), row("pixel median", 0.01)],
+        "ratios": [{"geometry": "truth", "views": "novel", "numerator": "fitted", "denominator": "pixel median",
+                    "rmse": 1.0, "one_minus_ssim": 1.0, "mean_colour": 1.0, "colour_w1": 1.0, "contrast_w1": 0.76}],
+        "unseen_floors": [{"geometry": "truth", "views": "novel", "rmse": 0.36, "mean_colour": 0.32,
+                           "colour_w1": 0.29, "contrast_w1": 0.65}],
+    });
+    write(&dir.join("eval/eval.json"), &eval);
+    let html = std::fs::read_to_string(write_report(dir).unwrap()).unwrap();
+    let at = html.find("<h2 id=\"evaluation\">").expect("an evaluation section");
+    let section = &html[at..];
+    assert!(section.contains("<td>fitted / pixel median</td>") && section.contains("<td>0.7600</td>"), "{section}");
+    let floor = section.find("Floor of the parts no input view shows").expect("the floor is explained");
+    assert!(section[floor..].contains("<td>0.6500</td>"), "{}", &section[floor..]);
+    // Without floors in the JSON (no unseen part), the page says nothing about them.
+    let mut plain = eval;
+    plain["unseen_floors"] = json!([]);
+    write(&dir.join("eval/eval.json"), &plain);
+    let html = std::fs::read_to_string(write_report(dir).unwrap()).unwrap();
+    assert!(!html.contains("Floor of the parts no input view shows"));
+}
+
 /// `psc fit` writes the report into its staging folder before renaming it into place: the page
 /// must name the folder the user will find, and say which files are missing by their path
 /// within it, so that nothing on it names the staging folder.
