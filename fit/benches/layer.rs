@@ -69,6 +69,7 @@ fn view(rng: &mut SplitMix64) -> PartView {
         target_linear: vec![[0.2; 3]; w * h],
         exposure: [1.0; 3],
         noise: [0.0; 4],
+        noise_scale: 1.0,
     }
 }
 

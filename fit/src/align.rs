@@ -149,7 +149,7 @@ fn align_part(obs: &ViewObservation, view: usize, part: u32) -> Option<AlignedPa
 }
 
 /// The model pixel under photo raster position (x, y), if inside the image.
-fn model_pixel(warp: &Warp, x: f32, y: f32, w: usize, h: usize) -> Option<usize> {
+pub(crate) fn model_pixel(warp: &Warp, x: f32, y: f32, w: usize, h: usize) -> Option<usize> {
     let [gx, gy] = warp.to_model([x, y]);
     if !(gx >= 0.0 && gy >= 0.0 && gx < w as f32 && gy < h as f32) {
         return None;

@@ -153,6 +153,14 @@ impl Descriptor {
     pub fn noise_sigma(&self) -> [f32; 3] {
         self.sigma
     }
+
+    /// Takes only the fraction `scale` (in (0, 1]) of the estimated noise as noise: the
+    /// render-noise check found the rest to be texture ([`crate::render_noise`]).
+    pub fn scale_noise(&mut self, scale: f32) {
+        self.sigma.iter_mut().for_each(|s| *s *= scale);
+        let s2 = f64::from(scale).powi(2);
+        self.noise.iter_mut().for_each(|n| *n *= s2);
+    }
 }
 
 /// Reusable buffers for [`FeatureLoss`] calls; one per thread. Grows to the largest region it

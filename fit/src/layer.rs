@@ -86,6 +86,10 @@ pub struct PartView {
     /// The target's pixel noise at the crop's resolution: standard deviations of r, g, b and
     /// luma (sRGB). Zeros: a noise-free target.
     pub noise: [f32; 4],
+    /// The factor (in (0, 1]) `noise` carries from the render-noise check
+    /// ([`crate::render_noise`]): the fraction of what a photo-side noise estimator reads on
+    /// this crop that is noise. The feature loss scales its own estimate by it. 1: all of it.
+    pub noise_scale: f32,
 }
 
 /// How densely the layer samples a pixel's footprint.

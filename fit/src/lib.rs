@@ -27,6 +27,7 @@ pub mod part;
 pub mod part_fit;
 pub mod pipeline;
 pub mod refit;
+pub mod render_noise;
 pub mod result;
 pub mod search;
 pub mod select;

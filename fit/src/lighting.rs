@@ -211,13 +211,23 @@ pub type UnitRenders = Vec<Vec<Vec<[f32; 3]>>>;
 
 /// Per-view, per-slot renders at unit radiance with the renderer's materials: `[view][slot]`.
 pub fn unit_renders(renderer: &Renderer, views: &[ViewObservation], seed: u64) -> Result<UnitRenders, FitError> {
+    unit_renders_at(renderer, views, seed, ESTIMATE_SPP)
+}
+
+/// [`unit_renders`] at `spp` samples per pixel.
+pub fn unit_renders_at(
+    renderer: &Renderer,
+    views: &[ViewObservation],
+    seed: u64,
+    spp: u32,
+) -> Result<UnitRenders, FitError> {
     views
         .iter()
         .map(|obs| {
             let opts = RenderOptions {
                 width: obs.camera.width,
                 height: obs.camera.height,
-                spp: ESTIMATE_SPP,
+                spp,
                 seed,
                 per_light: true,
                 ..Default::default()

@@ -103,7 +103,8 @@ impl PartLoss {
     ) -> Result<PartLoss, FitError> {
         let region = Region { width: view.width, height: view.height, weight: view.weight.clone() };
         let features = FeatureLoss::new(config, &region).map_err(feature_error)?;
-        let target_features = features.describe(&view.target, scratch).map_err(feature_error)?;
+        let mut target_features = features.describe(&view.target, scratch).map_err(feature_error)?;
+        target_features.scale_noise(view.noise_scale);
         let target = Moments::of(&view.target, &view.weight);
         let target_std_floor = std::array::from_fn(|c| (target.std[c].powi(2) - view.noise[c].powi(2)).max(0.0).sqrt());
         let contrast = ContrastLoss::new(view.width, view.height, &view.weight, &view.target, view.noise[3]);

@@ -64,6 +64,8 @@ pub(crate) struct PartInputs<'a> {
     pub views: &'a [ViewObservation],
     /// Per view, the exposure its photo is compared at.
     pub exposure: &'a [[f32; 3]],
+    /// Per view, the render-noise check of its crops' noise estimates.
+    pub render_noise: &'a [crate::render_noise::RenderNoise],
 }
 
 /// Fits one part; `before`: the part in a previous fit that this one continues (`--resume`).
@@ -75,7 +77,7 @@ pub(crate) fn fit_one_part(
     before: Option<&PartResult>,
     options: &FitOptions,
 ) -> Result<PartResult, FitError> {
-    let PartInputs { scene, library, homogeneous, renderer, views, exposure } = *inputs;
+    let PartInputs { scene, library, homogeneous, renderer, views, exposure, render_noise } = *inputs;
     let name = scene.mesh.part_names[part as usize].clone();
     let started = Instant::now();
     let mut result = PartResult {
@@ -104,9 +106,16 @@ pub(crate) fn fit_one_part(
     for (v, list) in aligned.iter().enumerate() {
         let Some(a) = list.iter().find(|a| a.part == part && !a.usable.is_empty()) else { continue };
         let obs = &views[v];
-        let Some(view) =
-            part_view(obs, a, renderer.geometry(), &obs.camera, &shading[v], options.search_pixels, exposure[v])
-        else {
+        let Some(view) = part_view(
+            obs,
+            a,
+            renderer.geometry(),
+            &obs.camera,
+            &shading[v],
+            options.search_pixels,
+            exposure[v],
+            render_noise.get(v),
+        ) else {
             continue;
         };
         let colour = flat_colour(homogeneous, &view, &mut ws)?;
@@ -149,6 +158,7 @@ pub(crate) fn fit_one_part(
         &shading[chosen.view],
         options.fit_pixels,
         exposure[chosen.view],
+        render_noise.get(chosen.view),
     )
     .expect("the search view of the same pixels exists");
     result.pixels.fitted = fit_view.pixels.len();

@@ -20,6 +20,7 @@ use crate::observe::ViewObservation;
 use crate::part::{fit_one_part, summary, PartInputs, HOMOGENEOUS};
 use crate::part_fit::FitSettings;
 use crate::refit::{self, RoundInputs, RoundLighting};
+use crate::render_noise;
 use crate::select::SelectSettings;
 
 pub use crate::result::{
@@ -274,6 +275,18 @@ fn run(
         )));
     }
     lap("light estimate", &mut timings);
+    progress.stage("render noise", views.len() as u64);
+    let render_noise = render_noise::estimate(&renderer, &views, &aligned, &radiance, options.seed)?;
+    for (obs, noise) in views.iter().zip(&render_noise) {
+        if let Some(k) = noise.ratio() {
+            progress.note(&format!(
+                "{}: photo noise {k:.2}x the render's (parts above {:.2}x hold texture)",
+                obs.name,
+                k * render_noise::TOLERANCE
+            ));
+        }
+    }
+    lap("render noise", &mut timings);
     progress.stage("light grids", views.len() as u64);
     let grids = lighting::view_grids(&renderer, &views, options.grid, options.seed)?;
     let shading: Vec<ShadingGrid> =
@@ -301,6 +314,7 @@ fn run(
             renderer: &renderer,
             views: &views,
             exposure: &exposure,
+            render_noise: &render_noise,
         };
         let result = fit_one_part(&inputs, &aligned, &shading, part as u32, before, options)?;
         progress.note(&summary(name, &result));
@@ -320,7 +334,14 @@ fn run(
         timings,
     };
     let mut shading = shading;
-    let inputs = RoundInputs { library, homogeneous: &homogeneous, views: &views, aligned: &aligned, options };
+    let inputs = RoundInputs {
+        library,
+        homogeneous: &homogeneous,
+        views: &views,
+        aligned: &aligned,
+        render_noise: &render_noise,
+        options,
+    };
     {
         let light = RoundLighting { renderer: &renderer, shading: &shading, exposure: &result.exposure };
         for part in result.parts.iter_mut() {

@@ -11,6 +11,7 @@
 //! made in the shading layer, so the pipeline ends on a light solve applied without a re-fit,
 //! to leave the parts' colours as the path tracer sees them.
 
+use crate::render_noise::RenderNoise;
 use psc_render::Renderer;
 use psc_runtime::library::{Library, Material};
 
@@ -50,6 +51,8 @@ pub struct RoundInputs<'a> {
     pub homogeneous: &'a Material,
     pub views: &'a [ViewObservation],
     pub aligned: &'a [Vec<AlignedPart>],
+    /// Per view, the render-noise check of its crops' noise estimates.
+    pub render_noise: &'a [RenderNoise],
     pub options: &'a FitOptions,
 }
 
@@ -85,16 +88,31 @@ pub fn refit_appearance(inputs: &RoundInputs, light: &RoundLighting, part: &mut 
     let mut ws = Workspace::default();
     if part.status == PartStatus::Homogeneous {
         let exposure = light.exposure(v);
-        if let Some(view) = part_view(obs, a, geometry, &obs.camera, &light.shading[v], options.search_pixels, exposure)
-        {
+        if let Some(view) = part_view(
+            obs,
+            a,
+            geometry,
+            &obs.camera,
+            &light.shading[v],
+            options.search_pixels,
+            exposure,
+            inputs.render_noise.get(v),
+        ) {
             let colour = flat_colour(inputs.homogeneous, &view, &mut ws)?;
             part.state = flat_state(inputs.homogeneous, colour, part.state.roughness);
         }
         return Ok(());
     }
-    let Some(fit_view) =
-        part_view(obs, a, geometry, &obs.camera, &light.shading[v], options.fit_pixels, light.exposure(v))
-    else {
+    let Some(fit_view) = part_view(
+        obs,
+        a,
+        geometry,
+        &obs.camera,
+        &light.shading[v],
+        options.fit_pixels,
+        light.exposure(v),
+        inputs.render_noise.get(v),
+    ) else {
         return Ok(());
     };
     let material = inputs.library.get(&part.graph).expect("fitted graphs come from the library");
@@ -125,8 +143,16 @@ pub fn match_whole_part(inputs: &RoundInputs, light: &RoundLighting, part: &mut 
     }
     let obs = &inputs.views[v];
     let exposure = light.exposure(v);
-    let Some(view) = part_view(obs, a, light.renderer.geometry(), &obs.camera, &light.shading[v], usize::MAX, exposure)
-    else {
+    let Some(view) = part_view(
+        obs,
+        a,
+        light.renderer.geometry(),
+        &obs.camera,
+        &light.shading[v],
+        usize::MAX,
+        exposure,
+        inputs.render_noise.get(v),
+    ) else {
         return Ok(0.0);
     };
     let material = inputs.library.get(&part.graph).expect("fitted graphs come from the library");

@@ -34,9 +34,12 @@ use crate::align::AlignedPart;
 use crate::layer::{FitPixel, PartView};
 use crate::lighting::ShadingGrid;
 use crate::observe::{surface_at, ViewObservation};
+use crate::render_noise::RenderNoise;
 
 /// Builds the target of `aligned` with at most about `max_pixels` fit pixels, rendered at the
-/// view's RGB `exposure`; None when no usable pixel has a surface point and lighting.
+/// view's RGB `exposure`; None when no usable pixel has a surface point and lighting. With the
+/// view's `render_noise`, the crop's noise estimate is capped by it ([`crate::render_noise`]).
+#[allow(clippy::too_many_arguments)]
 pub fn part_view(
     obs: &ViewObservation,
     aligned: &AlignedPart,
@@ -45,6 +48,7 @@ pub fn part_view(
     grid: &ShadingGrid,
     max_pixels: usize,
     exposure: [f32; 3],
+    render_noise: Option<&RenderNoise>,
 ) -> Option<PartView> {
     let w = obs.photo.width;
     let usable = window(&aligned.usable, w, obs.photo.height, max_pixels);
@@ -120,7 +124,18 @@ pub fn part_view(
     if pixels.is_empty() {
         return None;
     }
-    let noise = crop_noise(&target, &unclipped_weight, &weight, cw, ch);
+    let mut noise = crop_noise(&target, &unclipped_weight, &weight, cw, ch);
+    let noise_scale = render_noise.map_or(1.0, |r| {
+        let positions = pixels.iter().map(|p| {
+            let c = p.crop_index as usize;
+            [
+                (x0 + (c % cw) * factor) as f32 + 0.5 * factor as f32,
+                (y0 + (c / cw) * factor) as f32 + 0.5 * factor as f32,
+            ]
+        });
+        r.factor(aligned, positions, noise[3])
+    });
+    noise.iter_mut().for_each(|s| *s *= noise_scale);
     Some(PartView {
         width: cw,
         height: ch,
@@ -132,6 +147,7 @@ pub fn part_view(
         target_linear,
         exposure,
         noise,
+        noise_scale,
     })
 }
 

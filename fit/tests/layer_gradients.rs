@@ -63,6 +63,7 @@ fn synthetic_view(rng: &mut SplitMix64) -> PartView {
         // Per channel, so that the adjoint of the RGB exposure is checked.
         exposure: [0.35, 0.45, 0.28],
         noise: [0.0; 4],
+        noise_scale: 1.0,
     }
 }
 

@@ -79,7 +79,7 @@ fn check_scene(name: &str, library: &Library, graph: &str, uv: UvTransform) -> V
     let mut out = Vec::new();
     let mut ws = Workspace::default();
     for aligned in align_view(obs, 0, n_parts) {
-        let Some(pv) = part_view(obs, &aligned, renderer.geometry(), &obs.camera, &shading, usize::MAX, [1.0; 3])
+        let Some(pv) = part_view(obs, &aligned, renderer.geometry(), &obs.camera, &shading, usize::MAX, [1.0; 3], None)
         else {
             continue;
         };

@@ -31,5 +31,6 @@ pub fn flat_view(size: usize, step: f32) -> PartView {
         target_linear: vec![[0.2; 3]; size * size],
         exposure: [1.0; 3],
         noise: [0.0; 4],
+        noise_scale: 1.0,
     }
 }

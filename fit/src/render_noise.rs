@@ -1,0 +1,215 @@
+//! Stage 3b, how much of what a photo's noise estimator reads is noise: the renderer's own
+//! noise as the reference that tells a part's pixel noise from its finest texture.
+//!
+//! The losses forgive a candidate for lacking as much variation as the photo's pixel noise
+//! (`targets` estimates it per crop with Immerkær's mask). That estimator cannot tell noise from
+//! texture near the pixel scale: dev_3's brick wall, courses three pixels apart, reads 0.021
+//! where the plain wall beside it reads 0.009, so a candidate that hides the bricks is forgiven
+//! for it and wins. A photo-wide estimate (one noise level for every part) avoids that
+//! confusion but is wrong the other way: path-tracing noise is not one level. It is larger
+//! where the light arrives by bounces (dev_1's ceiling reads 0.028 beside its floor's 0.010,
+//! both plain), and parts there were then fitted with texture to stand in for the noise.
+//!
+//! The renderer knows where its noise is large. Two independent renders of every input view
+//! (different seeds, the same materials and lights) differ by their noise alone; per part, the
+//! median of their difference is the render's noise `σ_r`, and across a view the photo's noise
+//! over the render's, `σ_p / σ_r`, is nearly constant over the plain parts. Measured on the dev
+//! photos against 16-spp renders: 0.26–0.50 on their plain parts (median 0.39–0.40 per view),
+//! dev_1's indirectly lit ceiling 0.40 among them, but 0.84 on dev_1's gravel wall (2.2× the
+//! median), 0.95 on dev_3's brick wall (2.4×), 0.52–0.59 on its brick rug, marble and red chair.
+//! So per view `k` is the median ratio over the parts with enough pixels, and a crop's noise is
+//! capped at [`TOLERANCE`]`· k · σ_r` (σ_r over the crop's own pixels): the excess is
+//! texture, which the losses then ask a candidate to have. The tolerance covers the spread of
+//! the plain parts' ratios (their largest is 1.28× the median), so plain parts keep their
+//! estimates. The cap is one factor on all of a crop's estimates (r, g, b, luma, and the
+//! feature loss's colour axes), the luma's: the photo's noise is a fraction of what its
+//! estimator read, whatever the channel.
+
+use psc_render::image_io::linear_to_srgb;
+use psc_render::Renderer;
+
+use crate::align::{model_pixel, AlignedPart};
+use crate::contrast::luma;
+use crate::error::FitError;
+use crate::lighting;
+use crate::observe::ViewObservation;
+
+/// Samples per pixel of each of the two renders.
+pub const SPP: u32 = 16;
+/// How far above the view's typical photo/render noise ratio a part's may lie before the
+/// excess counts as texture.
+pub const TOLERANCE: f32 = 1.5;
+/// Parts with fewer usable pixels than this do not vote on a view's ratio.
+const MIN_PART_PIXELS: usize = 500;
+/// The median absolute value of a unit normal variable.
+const MAD_NORMAL: f32 = 0.6745;
+
+/// The render noise of one input view.
+pub struct RenderNoise {
+    width: usize,
+    height: usize,
+    /// Per model pixel, the luma difference of the two renders (sRGB, absolute).
+    difference: Vec<f32>,
+    /// The photo's noise over the render's in this view; None when no part could say.
+    ratio: Option<f32>,
+}
+
+/// Renders every input view twice under `radiance` (per emitter slot) with the renderer's
+/// current materials and measures each view's photo/render noise ratio over `aligned`.
+pub fn estimate(
+    renderer: &Renderer,
+    views: &[ViewObservation],
+    aligned: &[Vec<AlignedPart>],
+    radiance: &[[f32; 3]],
+    seed: u64,
+) -> Result<Vec<RenderNoise>, FitError> {
+    let a = lighting::unit_renders_at(renderer, views, psc_base::mix64(seed ^ 0x0015_e001), SPP)?;
+    let b = lighting::unit_renders_at(renderer, views, psc_base::mix64(seed ^ 0x0015_e002), SPP)?;
+    let combine = |slots: &[Vec<[f32; 3]>], i: usize| -> f32 {
+        let mut linear = [0.0f32; 3];
+        for (image, r) in slots.iter().zip(radiance) {
+            (0..3).for_each(|c| linear[c] += image[i][c] * r[c]);
+        }
+        luma(linear.map(|x| linear_to_srgb(x.clamp(0.0, 1.0))))
+    };
+    Ok(views
+        .iter()
+        .enumerate()
+        .map(|(v, obs)| {
+            let (width, height) = (obs.camera.width, obs.camera.height);
+            let difference: Vec<f32> =
+                (0..width * height).map(|i| (combine(&a[v], i) - combine(&b[v], i)).abs()).collect();
+            let mut noise = RenderNoise { width, height, difference, ratio: None };
+            noise.ratio = view_ratio(obs, &aligned[v], &noise);
+            noise
+        })
+        .collect())
+}
+
+impl RenderNoise {
+    /// The photo's noise over the render's in this view.
+    pub fn ratio(&self) -> Option<f32> {
+        self.ratio
+    }
+
+    /// The render's noise (a standard deviation, sRGB luma) over the model pixels under the
+    /// given photo positions; None when none lands in the raster.
+    fn sigma_at(&self, aligned: &AlignedPart, photo_positions: impl Iterator<Item = [f32; 2]>) -> Option<f32> {
+        let mut d: Vec<f32> = photo_positions
+            .filter_map(|[x, y]| model_pixel(&aligned.warp, x, y, self.width, self.height))
+            .map(|j| self.difference[j])
+            .collect();
+        median(&mut d).map(|m| m / (MAD_NORMAL * std::f32::consts::SQRT_2))
+    }
+
+    /// The factor in (0, 1] on a crop's noise estimate whose luma reads `photo_sigma`: the
+    /// part of it the render's noise at the crop's pixels (photo raster positions) accounts
+    /// for, within [`TOLERANCE`]. 1 where the view has no ratio or the render no noise there.
+    pub fn factor(
+        &self,
+        aligned: &AlignedPart,
+        photo_positions: impl Iterator<Item = [f32; 2]>,
+        photo_sigma: f32,
+    ) -> f32 {
+        let (Some(k), Some(sigma)) = (self.ratio, self.sigma_at(aligned, photo_positions)) else { return 1.0 };
+        cap_factor(photo_sigma, TOLERANCE * k * sigma)
+    }
+}
+
+/// `cap / estimate`, at most 1 (and 1 for a non-positive cap or estimate).
+fn cap_factor(estimate: f32, cap: f32) -> f32 {
+    if estimate > 0.0 && cap > 0.0 && cap < estimate {
+        cap / estimate
+    } else {
+        1.0
+    }
+}
+
+/// The median photo/render noise ratio over the view's parts with at least
+/// [`MIN_PART_PIXELS`] usable pixels, each measured on the usable pixels whose 3×3
+/// neighbourhood is usable too (Immerkær's mask on the photo's sRGB luma there).
+fn view_ratio(obs: &ViewObservation, aligned: &[AlignedPart], noise: &RenderNoise) -> Option<f32> {
+    let (w, h) = (obs.photo.width, obs.photo.height);
+    let photo_luma: Vec<f32> = obs.photo.encoded.iter().map(|&p| luma(p)).collect();
+    let mut ratios = Vec::new();
+    let mut usable = vec![false; w * h];
+    for part in aligned.iter().filter(|a| a.usable.len() >= MIN_PART_PIXELS) {
+        part.usable.iter().for_each(|&i| usable[i as usize] = true);
+        let inner: Vec<usize> = part
+            .usable
+            .iter()
+            .map(|&i| i as usize)
+            .filter(|&i| {
+                let (x, y) = (i % w, i / w);
+                x > 0 && y > 0 && x + 1 < w && y + 1 < h && (0..9).all(|k| usable[(y + k / 3 - 1) * w + x + k % 3 - 1])
+            })
+            .collect();
+        part.usable.iter().for_each(|&i| usable[i as usize] = false);
+        let mut responses: Vec<f32> = inner.iter().map(|&i| immerkaer(&photo_luma, w, i).abs()).collect();
+        let photo = median(&mut responses).map(|m| m / (MAD_NORMAL * 6.0));
+        let positions = inner.iter().map(|&i| [(i % w) as f32 + 0.5, (i / w) as f32 + 0.5]);
+        if let (Some(p), Some(r)) = (photo, noise.sigma_at(part, positions)) {
+            if p > 0.0 && r > 0.0 {
+                ratios.push(p / r);
+            }
+        }
+    }
+    lower_quartile(&mut ratios)
+}
+
+/// The lower quartile of `values` (nearest rank).
+fn lower_quartile(values: &mut [f32]) -> Option<f32> {
+    if values.is_empty() {
+        return None;
+    }
+    let q = (values.len() - 1) / 4;
+    let (_, v, _) = values.select_nth_unstable_by(q, f32::total_cmp);
+    Some(*v)
+}
+
+/// Immerkær's noise mask (the difference of two discrete Laplacians) at interior pixel `i`.
+fn immerkaer(plane: &[f32], w: usize, i: usize) -> f32 {
+    const MASK: [f32; 9] = [1.0, -2.0, 1.0, -2.0, 4.0, -2.0, 1.0, -2.0, 1.0];
+    (0..9).map(|k| MASK[k] * plane[i + (k / 3) * w + k % 3 - w - 1]).sum()
+}
+
+fn median(values: &mut [f32]) -> Option<f32> {
+    if values.is_empty() {
+        return None;
+    }
+    let mid = values.len() / 2;
+    let (_, m, _) = values.select_nth_unstable_by(mid, f32::total_cmp);
+    Some(*m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_cap_only_ever_lowers_an_estimate() {
+        assert_eq!(cap_factor(0.02, 0.01), 0.5);
+        assert_eq!(cap_factor(0.01, 0.02), 1.0);
+        assert_eq!(cap_factor(0.0, 0.01), 1.0);
+        assert_eq!(cap_factor(0.01, 0.0), 1.0);
+    }
+
+    #[test]
+    fn immerkaer_reads_white_noise_at_its_level_and_a_ramp_as_none() {
+        let (w, h) = (64usize, 64usize);
+        let mut rng = psc_base::SplitMix64::new(7);
+        let sigma = 0.02f32;
+        let noise: Vec<f32> = (0..w * h)
+            .map(|_| {
+                let (u, v) = (rng.next_f32().max(1e-7), rng.next_f32());
+                sigma * (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * v).cos()
+            })
+            .collect();
+        let ramp: Vec<f32> = (0..w * h).map(|i| 0.01 * (i % w) as f32 + 0.003 * (i / w) as f32).collect();
+        let interior = (1..h - 1).flat_map(|y| (1..w - 1).map(move |x| y * w + x));
+        let mut r: Vec<f32> = interior.clone().map(|i| immerkaer(&noise, w, i).abs()).collect();
+        let estimate = median(&mut r).unwrap() / (MAD_NORMAL * 6.0);
+        assert!((estimate / sigma - 1.0).abs() < 0.05, "{estimate}");
+        assert!(interior.map(|i| immerkaer(&ramp, w, i).abs()).all(|r| r < 1e-5));
+    }
+}
