@@ -167,20 +167,8 @@ pub fn part_view(
 /// intensity separates noise from texture. Nor does orientation: the smallest of the four
 /// directional second differences reads 0.0192 on dev_3's brick wall against Immerkær's
 /// 0.0205 (the brick photo has a fine grain of its own). What does separate them is the
-/// renderer's own noise: two independent 16-spp renders of the view differ by their noise
-/// alone, and the photo's noise over theirs is about constant over the large plain parts
-/// (0.31–0.47 on dev_1 and dev_3 under the pixel-median materials, dev_1's ceiling 0.43; a
-/// small cabinet trim 0.63) and more than twice that on the gravel and brick walls (0.86, 1.05). Measured and left out (branch
-/// `exp/render-noise`): each crop's estimates scaled down to at most 1.5× the view's lower
-/// quartile of that ratio times the render's noise at its pixels. It cut the brick wall's
-/// estimate to 0.59 of itself, dev_1's gravel to 0.63, and left every plain part's alone
-/// (`fit/tests/render_noise_dev.rs` there), but the graphs hardly moved: the brick wall kept its
-/// quartz (at log-scale −2.6 for −1.5), dev_4's wooden table went from a laminate to a checker
-/// marble. Texture contrast over the pixel median's, true geometry, input / novel / relit,
-/// seed 0: dev_1 0.39 / 0.34 / 0.44 → 0.38 / 0.31 / 0.42, dev_2 0.53 / 0.42 / 0.73 →
-/// 0.53 / 0.42 / 0.72, dev_3 0.46 / 0.67 / 0.50 → 0.48 / 0.60 / 0.52, dev_4 0.33 / 0.76 / 0.36
-/// → 0.45 / 0.85 / 0.44 (the sum of the 12 cells 5.95 → 6.12); on the hold-out rooms the sum
-/// went from 3.81 to 3.73, no plank floor got planks, and the lights moved by at most 2.1 points.
+/// renderer's own noise, which [`crate::render_noise`] uses to cap this estimate where it
+/// holds texture (the crop's `noise_scale`).
 fn crop_noise(target: &[[f32; 3]], unclipped: &[f32], weight: &[f32], w: usize, h: usize) -> [f32; 4] {
     std::array::from_fn(|c| {
         let plane: Vec<f32> = target.iter().map(|&p| if c < 3 { p[c] } else { crate::contrast::luma(p) }).collect();
