@@ -53,6 +53,7 @@ use psc_render::Renderer;
 use crate::align::{model_pixel, AlignedPart};
 use crate::contrast::luma;
 use crate::error::FitError;
+use crate::features::estimate_noise_sigma;
 use crate::lighting;
 use crate::observe::ViewObservation;
 
@@ -147,33 +148,30 @@ fn cap_factor(estimate: f32, cap: f32) -> f32 {
     }
 }
 
-/// The median photo/render noise ratio over the view's parts with at least
+/// The lower quartile of the photo/render noise ratios over the view's parts with at least
 /// [`MIN_PART_PIXELS`] usable pixels, each measured on the usable pixels whose 3×3
-/// neighbourhood is usable too (Immerkær's mask on the photo's sRGB luma there).
+/// neighbourhood is usable too (the photo's sRGB luma by the estimator `targets` uses).
 fn view_ratio(obs: &ViewObservation, aligned: &[AlignedPart], noise: &RenderNoise) -> Option<f32> {
     let (w, h) = (obs.photo.width, obs.photo.height);
     let photo_luma: Vec<f32> = obs.photo.encoded.iter().map(|&p| luma(p)).collect();
     let mut ratios = Vec::new();
-    let mut usable = vec![false; w * h];
+    let mut usable = vec![0.0f32; w * h];
     for part in aligned.iter().filter(|a| a.usable.len() >= MIN_PART_PIXELS) {
-        part.usable.iter().for_each(|&i| usable[i as usize] = true);
-        let inner: Vec<usize> = part
-            .usable
-            .iter()
-            .map(|&i| i as usize)
-            .filter(|&i| {
-                let (x, y) = (i % w, i / w);
-                x > 0 && y > 0 && x + 1 < w && y + 1 < h && (0..9).all(|k| usable[(y + k / 3 - 1) * w + x + k % 3 - 1])
-            })
-            .collect();
-        part.usable.iter().for_each(|&i| usable[i as usize] = false);
-        let mut responses: Vec<f32> = inner.iter().map(|&i| immerkaer(&photo_luma, w, i).abs()).collect();
-        let photo = median(&mut responses).map(|m| m / (MAD_NORMAL * 6.0));
-        let positions = inner.iter().map(|&i| [(i % w) as f32 + 0.5, (i / w) as f32 + 0.5]);
-        if let (Some(p), Some(r)) = (photo, noise.sigma_at(part, positions)) {
-            if p > 0.0 && r > 0.0 {
-                ratios.push(p / r);
-            }
+        part.usable.iter().for_each(|&i| usable[i as usize] = 1.0);
+        let inner = part.usable.iter().map(|&i| i as usize).filter(|&i| {
+            let (x, y) = (i % w, i / w);
+            x > 0
+                && y > 0
+                && x + 1 < w
+                && y + 1 < h
+                && (0..9).all(|k| usable[(y + k / 3 - 1) * w + x + k % 3 - 1] > 0.0)
+        });
+        let positions = inner.map(|i| [(i % w) as f32 + 0.5, (i / w) as f32 + 0.5]);
+        let render = noise.sigma_at(part, positions);
+        let photo = estimate_noise_sigma(&photo_luma, &usable, w, h);
+        part.usable.iter().for_each(|&i| usable[i as usize] = 0.0);
+        if let Some(r) = render.filter(|&r| r > 0.0 && photo > 0.0) {
+            ratios.push(photo / r);
         }
     }
     lower_quartile(&mut ratios)
@@ -187,12 +185,6 @@ fn lower_quartile(values: &mut [f32]) -> Option<f32> {
     let q = (values.len() - 1) / 4;
     let (_, v, _) = values.select_nth_unstable_by(q, f32::total_cmp);
     Some(*v)
-}
-
-/// Immerkær's noise mask (the difference of two discrete Laplacians) at interior pixel `i`.
-fn immerkaer(plane: &[f32], w: usize, i: usize) -> f32 {
-    const MASK: [f32; 9] = [1.0, -2.0, 1.0, -2.0, 4.0, -2.0, 1.0, -2.0, 1.0];
-    (0..9).map(|k| MASK[k] * plane[i + (k / 3) * w + k % 3 - w - 1]).sum()
 }
 
 fn median(values: &mut [f32]) -> Option<f32> {
@@ -214,24 +206,5 @@ mod tests {
         assert_eq!(cap_factor(0.01, 0.02), 1.0);
         assert_eq!(cap_factor(0.0, 0.01), 1.0);
         assert_eq!(cap_factor(0.01, 0.0), 1.0);
-    }
-
-    #[test]
-    fn immerkaer_reads_white_noise_at_its_level_and_a_ramp_as_none() {
-        let (w, h) = (64usize, 64usize);
-        let mut rng = psc_base::SplitMix64::new(7);
-        let sigma = 0.02f32;
-        let noise: Vec<f32> = (0..w * h)
-            .map(|_| {
-                let (u, v) = (rng.next_f32().max(1e-7), rng.next_f32());
-                sigma * (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * v).cos()
-            })
-            .collect();
-        let ramp: Vec<f32> = (0..w * h).map(|i| 0.01 * (i % w) as f32 + 0.003 * (i / w) as f32).collect();
-        let interior = (1..h - 1).flat_map(|y| (1..w - 1).map(move |x| y * w + x));
-        let mut r: Vec<f32> = interior.clone().map(|i| immerkaer(&noise, w, i).abs()).collect();
-        let estimate = median(&mut r).unwrap() / (MAD_NORMAL * 6.0);
-        assert!((estimate / sigma - 1.0).abs() < 0.05, "{estimate}");
-        assert!(interior.map(|i| immerkaer(&ramp, w, i).abs()).all(|r| r < 1e-5));
     }
 }
