@@ -122,7 +122,7 @@ impl RenderNoise {
             .filter_map(|[x, y]| model_pixel(&aligned.warp, x, y, self.width, self.height))
             .map(|j| self.difference[j])
             .collect();
-        median(&mut d).map(|m| m / (MAD_NORMAL * std::f32::consts::SQRT_2))
+        (!d.is_empty()).then(|| lighting::median(&mut d) / (MAD_NORMAL * std::f32::consts::SQRT_2))
     }
 
     /// The factor in (0, 1] on a crop's noise estimate whose luma reads `photo_sigma`: the
@@ -185,15 +185,6 @@ fn lower_quartile(values: &mut [f32]) -> Option<f32> {
     let q = (values.len() - 1) / 4;
     let (_, v, _) = values.select_nth_unstable_by(q, f32::total_cmp);
     Some(*v)
-}
-
-fn median(values: &mut [f32]) -> Option<f32> {
-    if values.is_empty() {
-        return None;
-    }
-    let mid = values.len() / 2;
-    let (_, m, _) = values.select_nth_unstable_by(mid, f32::total_cmp);
-    Some(*m)
 }
 
 #[cfg(test)]
