@@ -70,6 +70,7 @@ fn view(rng: &mut SplitMix64) -> PartView {
         exposure: [1.0; 3],
         noise: [0.0; 4],
         noise_scale: 1.0,
+        faces: Vec::new(),
     }
 }
 

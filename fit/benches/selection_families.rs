@@ -168,6 +168,7 @@ fn textured_view(library: &Library, image: &RgbImage, density: f32, seed: u64) -
         exposure: [1.0; 3],
         noise: [0.0; 4],
         noise_scale: 1.0,
+        faces: Vec::new(),
     };
     // The light a white diffuse surface reflects here, which the texture's albedo scales.
     let white = library.get("homogeneous").expect("the library has the homogeneous material");

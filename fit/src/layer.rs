@@ -90,6 +90,10 @@ pub struct PartView {
     /// ([`crate::render_noise`]): the fraction of what a photo-side noise estimator reads on
     /// this crop that is noise. The feature loss scales its own estimate by it. 1: all of it.
     pub noise_scale: f32,
+    /// Per crop pixel, the face it lies on: a cluster of similar surface normals (see
+    /// [`crate::targets`]). The statistics loss compares colours face by face, since how each
+    /// face of a part is lit is the scene's to explain, not the material's. Empty: one face.
+    pub faces: Vec<u8>,
 }
 
 /// How densely the layer samples a pixel's footprint.

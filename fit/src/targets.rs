@@ -1,6 +1,7 @@
 //! Stage 4, a part's fitting target in one view: the crop of its usable photo pixels at a
 //! working resolution, with each fit pixel's surface point (uv, footprint, frame) traced at its
-//! warped position on the coarse model and its lighting interpolated from the view's grid.
+//! warped position on the coarse model and its lighting interpolated from the view's grid,
+//! and the face it lies on (for the statistics loss, see [`crate::loss`]).
 //!
 //! Parts with more usable pixels than the budget are fitted on a window of the photo at full
 //! resolution rather than on the whole part at a reduced one: texture is matched pixel for
@@ -93,6 +94,7 @@ pub fn part_view(
     let mut target = vec![[0.0f32; 3]; cw * ch];
     let mut target_linear = vec![[0.0f32; 3]; cw * ch];
     let mut pixels = Vec::new();
+    let mut normals = Vec::new();
     let step = [factor as f32 / aligned.warp.scale[0], factor as f32 / aligned.warp.scale[1]];
     for c in 0..cw * ch {
         if count[c] + count_clipped[c] == 0 {
@@ -111,6 +113,7 @@ pub fn part_view(
         unclipped_weight[c] = count[c] as f32 / (factor * factor) as f32;
         target_linear[c] = linear;
         target[c] = linear.map(linear_to_srgb);
+        normals.push((c, surface.normal));
         pixels.push(FitPixel {
             crop_index: c as u32,
             uv: surface.uv,
@@ -136,6 +139,7 @@ pub fn part_view(
         r.factor(aligned, positions, noise[3])
     });
     noise.iter_mut().for_each(|s| *s *= noise_scale);
+    let faces = faces(&normals, &weight);
     Some(PartView {
         width: cw,
         height: ch,
@@ -148,7 +152,55 @@ pub fn part_view(
         exposure,
         noise,
         noise_scale,
+        faces,
     })
+}
+
+/// Normals closer than this (cosine, about 26°) share a face.
+const FACE_COSINE: f32 = 0.9;
+/// A cluster holding less than this share of the crop's weight joins its nearest face.
+const FACE_MIN_SHARE: f32 = 0.05;
+/// At most this many faces; later clusters join their nearest.
+const MAX_FACES: usize = 8;
+
+/// Per crop pixel, its face (see [`PartView::faces`]): normals clustered greedily in crop
+/// order, each joining the first face whose first normal lies within [`FACE_COSINE`], then
+/// faces too small to hold meaningful statistics merged into their nearest. A table's top
+/// and front, or two walls of a corner, are two faces; a barrel's side a few bands.
+fn faces(normals: &[(usize, glam::Vec3)], weight: &[f32]) -> Vec<u8> {
+    let mut seeds: Vec<glam::Vec3> = Vec::new();
+    let mut share = Vec::new();
+    let mut of_pixel = Vec::with_capacity(normals.len());
+    for &(c, n) in normals {
+        let found = seeds.iter().position(|s| s.dot(n) >= FACE_COSINE);
+        let face = match found {
+            Some(f) => f,
+            None if seeds.len() < MAX_FACES => {
+                seeds.push(n);
+                share.push(0.0f32);
+                seeds.len() - 1
+            }
+            None => nearest(&seeds, n, |_| true),
+        };
+        share[face] += weight[c];
+        of_pixel.push(face);
+    }
+    let total: f32 = share.iter().sum::<f32>().max(1e-12);
+    let kept = |f: usize| share[f] >= FACE_MIN_SHARE * total;
+    let largest = (0..seeds.len()).max_by(|&a, &b| share[a].total_cmp(&share[b])).unwrap_or(0);
+    let target: Vec<usize> = (0..seeds.len())
+        .map(|f| if kept(f) || f == largest { f } else { nearest(&seeds, seeds[f], |g| kept(g) || g == largest) })
+        .collect();
+    let mut faces = vec![0u8; weight.len()];
+    for (&(c, _), &f) in normals.iter().zip(&of_pixel) {
+        faces[c] = target[f] as u8;
+    }
+    faces
+}
+
+/// The face among those `allowed` whose first normal is closest to `n`.
+fn nearest(seeds: &[glam::Vec3], n: glam::Vec3, allowed: impl Fn(usize) -> bool) -> usize {
+    (0..seeds.len()).filter(|&f| allowed(f)).max_by(|&a, &b| seeds[a].dot(n).total_cmp(&seeds[b].dot(n))).unwrap_or(0)
 }
 
 /// The target's noise, estimated on the crop itself (Immerkær's estimator per channel over the
@@ -240,4 +292,35 @@ fn window(usable: &[u32], w: usize, h: usize, max_pixels: usize) -> Vec<u32> {
             x >= bx && x < bx + ww && y >= by && y < by + wh
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    #[test]
+    fn a_table_top_and_its_front_are_two_faces_and_a_sliver_joins_its_neighbour() {
+        // 60 pixels facing up (with a slight wobble), 36 facing the camera, 4 at 45° between.
+        let mut normals = Vec::new();
+        for i in 0..60 {
+            normals.push((i, Vec3::new(0.05 * ((i % 3) as f32 - 1.0), 1.0, 0.0).normalize()));
+        }
+        for i in 60..96 {
+            normals.push((i, Vec3::Z));
+        }
+        for i in 96..100 {
+            normals.push((i, Vec3::new(0.0, 1.0, 1.2).normalize()));
+        }
+        // Pixel 100 is outside the part.
+        let mut weight = vec![1.0; 101];
+        weight[100] = 0.0;
+        let faces = faces(&normals, &weight);
+        assert_eq!(faces.len(), 101);
+        assert!(faces[..60].iter().all(|&f| f == faces[0]));
+        assert!(faces[60..96].iter().all(|&f| f == faces[60]));
+        assert_ne!(faces[0], faces[60]);
+        // The sliver (4% of the weight) is closer to the front (0.77) than to the top (0.64).
+        assert!(faces[96..100].iter().all(|&f| f == faces[60]), "{:?}", &faces[96..]);
+    }
 }

@@ -64,6 +64,7 @@ fn synthetic_view(rng: &mut SplitMix64) -> PartView {
         exposure: [0.35, 0.45, 0.28],
         noise: [0.0; 4],
         noise_scale: 1.0,
+        faces: Vec::new(),
     }
 }
 

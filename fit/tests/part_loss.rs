@@ -1,5 +1,6 @@
 //! The whole loss of a part (statistics, features, contrast): its gradient against central
-//! finite differences, and the photo's pixel noise not read as texture.
+//! finite differences, the photo's pixel noise not read as texture, and the lighting of a
+//! part's faces not read as texture either.
 
 mod flat_view;
 
@@ -38,10 +39,29 @@ fn waves(size: usize, amplitude: f32, period: f32) -> Vec<[f32; 3]> {
         .collect()
 }
 
+/// Per pixel of a `size`×`size` crop: face 0 on the left half, face 1 on the right.
+fn halves(size: usize) -> Vec<u8> {
+    (0..size * size).map(|i| u8::from(i % size >= size / 2)).collect()
+}
+
 #[test]
 fn the_gradient_of_the_whole_loss_matches_central_differences() {
+    gradient_matches_central_differences(Vec::new());
+}
+
+#[test]
+fn the_gradient_of_the_whole_loss_on_two_faces_matches_central_differences() {
+    gradient_matches_central_differences(halves(SIZE));
+}
+
+fn gradient_matches_central_differences(faces: Vec<u8>) {
     let mut view = flat_view(SIZE, 0.02);
     view.target = waves(SIZE, 0.06, 9.0);
+    // The right half of the photo is lit a fifth brighter.
+    for (t, &f) in view.target.iter_mut().zip(&faces) {
+        *t = t.map(|v| v * (1.0 + 0.2 * f32::from(f)));
+    }
+    view.faces = faces;
     let mut scratch = Scratch::default();
     let loss = PartLoss::new(&view, LossWeights::default(), &FeatureConfig::default(), &mut scratch).unwrap();
     let candidate = waves(SIZE, 0.03, 6.0);
@@ -91,4 +111,29 @@ fn pixel_noise_in_a_plain_photo_is_not_fitted_as_texture() {
     assert!(lf.statistics < 0.5 * without_noise_model, "statistics: flat {lf:?}, photo {:?}", loss.target_moments());
     assert!(lf.contrast < lt.contrast, "contrast: flat {lf:?}, textured {lt:?}");
     assert!(lf.total < lt.total, "flat {lf:?}, textured {lt:?}");
+}
+
+#[test]
+fn the_lighting_of_a_parts_faces_is_not_fitted_as_texture() {
+    // A plain part with two faces lit differently (0.7 and 0.3 in the photo) that the render
+    // lights alike (0.5 and 0.45). Pooled over the crop, the photo's spread is the difference
+    // between its faces, and a strong texture matches it better than the plain colour does;
+    // face by face, the photo has no spread, and the plain colour wins.
+    let size = 48;
+    let mut view = flat_view(size, 0.01);
+    let faces = halves(size);
+    view.target = faces.iter().map(|&f| [if f == 0 { 0.7 } else { 0.3 }; 3]).collect();
+    let plain: Vec<[f32; 3]> = faces.iter().map(|&f| [if f == 0 { 0.5 } else { 0.45 }; 3]).collect();
+    let textured = waves(size, 0.2, 9.0).iter().map(|p| [p[0] + 0.05; 3]).collect::<Vec<_>>();
+    let weights = LossWeights { statistics: 1.0, features: 0.0, contrast: 0.0 };
+    let mut scratch = Scratch::default();
+    let statistics = |view: &psc_fit::layer::PartView, image: &[[f32; 3]], scratch: &mut Scratch| {
+        let loss = PartLoss::new(view, weights, &FeatureConfig::default(), scratch).unwrap();
+        loss.value(image, scratch).statistics
+    };
+    let pooled = (statistics(&view, &plain, &mut scratch), statistics(&view, &textured, &mut scratch));
+    assert!(pooled.1 < pooled.0, "pooled: plain {}, textured {}", pooled.0, pooled.1);
+    view.faces = faces;
+    let by_face = (statistics(&view, &plain, &mut scratch), statistics(&view, &textured, &mut scratch));
+    assert!(by_face.0 < 0.75 * by_face.1, "face by face: plain {}, textured {}", by_face.0, by_face.1);
 }

@@ -32,5 +32,6 @@ pub fn flat_view(size: usize, step: f32) -> PartView {
         exposure: [1.0; 3],
         noise: [0.0; 4],
         noise_scale: 1.0,
+        faces: Vec::new(),
     }
 }
