@@ -143,8 +143,9 @@ impl PartLoss {
         let mut target_features = features.describe(&view.target, scratch).map_err(feature_error)?;
         target_features.scale_noise(view.noise_scale);
         let target = Moments::of(&view.target, &view.weight);
-        let faces = if view.faces.len() == view.weight.len() { view.faces.clone() } else { vec![0; view.weight.len()] };
-        let total: f32 = view.weight.iter().sum::<f32>().max(1e-12);
+        let faces = if view.faces.is_empty() { vec![0; view.weight.len()] } else { view.faces.clone() };
+        debug_assert_eq!(faces.len(), view.weight.len(), "one face per crop pixel");
+        let total_weight = view.total_weight().max(1e-6);
         let face_targets = Moments::by_face(&view.target, &view.weight, &faces)
             .into_iter()
             .enumerate()
@@ -153,13 +154,13 @@ impl PartLoss {
                 face: face as u8,
                 moments: m,
                 std_floor: std::array::from_fn(|c| (m.std[c].powi(2) - view.noise[c].powi(2)).max(0.0).sqrt()),
-                share: w / total,
+                share: w / total_weight,
             })
             .collect();
         let contrast = ContrastLoss::new(view.width, view.height, &view.weight, &view.target, view.noise[3]);
         Ok(PartLoss {
             weights,
-            total_weight: view.total_weight().max(1e-6),
+            total_weight,
             weight: view.weight.clone(),
             faces,
             target,
@@ -251,10 +252,10 @@ impl PartLoss {
             per_face[usize::from(t.face)] = Some(d);
         }
         for (((g, px), &w), &f) in grad.iter_mut().zip(image).zip(&self.weight).zip(&self.faces) {
-            if let (true, Some(Some(d))) = (w > 0.0, per_face.get(usize::from(f))) {
-                for c in 0..3 {
-                    g[c] += w * (d[c].0 + d[c].1 * (px[c] - d[c].2));
-                }
+            // A pixel of weight 0 lies on no face the photo has.
+            let Some(d) = per_face[usize::from(f)].filter(|_| w > 0.0) else { continue };
+            for c in 0..3 {
+                g[c] += w * (d[c].0 + d[c].1 * (px[c] - d[c].2));
             }
         }
         self.combine(statistics, features, contrast)

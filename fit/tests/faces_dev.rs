@@ -6,16 +6,15 @@ mod dev_part_views;
 #[path = "../../tests/src/not_run.rs"]
 mod not_run;
 
+use psc_fit::loss::Moments;
+
 /// Each face's share of the crop's weight, largest first.
 fn face_shares(part: &dev_part_views::DevPart) -> Vec<f32> {
     let v = &part.view;
     assert_eq!(v.faces.len(), v.weight.len(), "{}: one face per crop pixel", part.name);
-    let mut share = [0.0f32; 256];
-    for (&f, &w) in v.faces.iter().zip(&v.weight) {
-        share[usize::from(f)] += w;
-    }
-    let total: f32 = share.iter().sum();
-    let mut shares: Vec<f32> = share.iter().filter(|&&s| s > 0.0).map(|s| s / total).collect();
+    let weights: Vec<f32> = Moments::by_face(&v.target, &v.weight, &v.faces).into_iter().map(|(_, w)| w).collect();
+    let total: f32 = weights.iter().sum();
+    let mut shares: Vec<f32> = weights.iter().filter(|&&w| w > 0.0).map(|w| w / total).collect();
     shares.sort_by(|a, b| b.total_cmp(a));
     shares
 }
