@@ -10,6 +10,24 @@
 //! than the photo's), a pooled spread ranked a green-and-cream checkered marble above every
 //! wood grain, whose pattern matched the photo's five times better.
 //!
+//! The pattern terms (features and contrast) still see the whole crop, the step of brightness
+//! along a crease included. Measured and left out, keeping them off the creases: faces that
+//! meet where the normal jumps by over 14° between neighbouring pixels made separate sides (a
+//! barrel's bands stayed one), and crop pixels within two pixels of another side weighed 0 for
+//! the pattern terms. It passes a synthetic test (a texture on two faces lit 0.7 / 0.3, the
+//! photo's crease a pixel off the model's: looking across it, the pattern terms prefer a wrong
+//! texture lit right; kept off it, the right texture lit wrong), and it gave dev_2's slatted
+//! crate a beadboard where it had a marble. But texture contrast over the pixel median's on the
+//! true geometry, summed over input / novel / relit views of the four dev scenes, went from
+//! 5.33 to 4.98 at seed 0 and from 5.49 to 6.05 at seed 1 (cells above 0.5: 4 → 4 and 4 → 7),
+//! and on the four hold-out rooms at seed 0 from 3.80 to 3.96: small parts of many faces (the
+//! crates) lose much of their crop to the margins, and their coarse pattern levels with it
+//! (g2's plain crate went from a speckled vinyl to subway tiles). Bringing each side to the
+//! crop's mean instead, by a gain per channel, measured 5.46 at seed 0 (dev_4's table became a
+//! beadboard: the gain lifts the darker front's noise beyond what the losses allow for); by a
+//! shift, dev_4 alone went from 0.30 / 0.77 / 0.30 to 0.37 / 0.76 / 0.36. A balanced step still
+//! leaves a line where the photo's crease and the model's disagree.
+//!
 //! The photo's pixel noise adds to its standard deviation, and a rendered candidate has none:
 //! matching the two would ask a plain part for a texture as strong as the noise. So the
 //! standard-deviation term has a dead zone, as the feature loss's bands do: a candidate whose
