@@ -138,8 +138,6 @@ pub struct PartLoss {
     total_weight: f32,
     /// Per crop pixel, its face (all 0 for a view without faces).
     faces: Vec<u8>,
-    /// The photo's moments over the whole crop.
-    target: Moments,
     /// Per face (empty faces absent from the loss): the photo's moments, their lowest standard
     /// deviation per channel once the photo's noise is taken out (the lower end of the dead
     /// zone), and the face's share of the crop's weight.
@@ -160,7 +158,6 @@ impl PartLoss {
         let features = FeatureLoss::new(config, &region).map_err(feature_error)?;
         let mut target_features = features.describe(&view.target, scratch).map_err(feature_error)?;
         target_features.scale_noise(view.noise_scale);
-        let target = Moments::of(&view.target, &view.weight);
         let faces = if view.faces.is_empty() { vec![0; view.weight.len()] } else { view.faces.clone() };
         debug_assert_eq!(faces.len(), view.weight.len(), "one face per crop pixel");
         let total_weight = view.total_weight().max(1e-6);
@@ -181,16 +178,11 @@ impl PartLoss {
             total_weight,
             weight: view.weight.clone(),
             faces,
-            target,
             face_targets,
             features,
             target_features,
             contrast,
         })
-    }
-
-    pub fn target_moments(&self) -> Moments {
-        self.target
     }
 
     pub fn value(&self, image: &[[f32; 3]], scratch: &mut Scratch) -> LossValue {
