@@ -67,6 +67,46 @@
 //! one estimate, 0.4% now; dev_4 3.0% and 0.8%; dev_1 (three lights, two nearly collinear in its
 //! only view) 39% and 11.5%, where the cross products without the floor gave 40%.
 //!
+//! That shrinkage grows with the renders' noise, and on a room whose lights light its views
+//! alike it is a bias of its own. Given dev_1's exact inputs (its true materials on its true
+//! geometry, `fit/tests/light_solve_dev.rs`), the solve puts its lights, over four pairs of
+//! seeds, 25–30% off the truth's ratio with 16-spp estimates, 14–16% with 64, 10–12% with 128
+//! and 1.6–3.0% with 256, its first light always high and its second low: the sign of all 22
+//! fits of it on record (first light 1.04–1.22 of its true share, second 0.85–0.94). Its true
+//! materials on its coarse model, one round at seeds 0–2: 20–23% at 16 spp, 10.5–11.5% at 64;
+//! dev_2 6.1–6.9% and 1.1–1.2%, dev_4 0–0.4% and 1.1–1.4%, the hold-out room g1 5.6–7.5% and
+//! 5.9–6.8%. Our render of the true room under the true lights matches its photo within 0.1%
+//! per part mean, so the bias is the solve's.
+//!
+//! Measured and left out: the solve's two estimates at 64 spp (the first estimate at 16). Graphs
+//! are chosen before the first solve, so none changed; the lights and, through the part factors,
+//! the colours did. Fits and `psc eval --spp 128` as above, 16 → 64 spp, between two lights off
+//! the truth's ratio:
+//!
+//! | room | seed 0 | seed 1 |
+//! | --- | --- | --- |
+//! | dev_1 | 10.4% → 6.9% | 12.0% → 9.0% |
+//! | dev_2 | 2.0% → 8.9% | 8.6% → 1.1% |
+//! | dev_4 | 0.3% → 1.4% | 1.0% → 0.5% |
+//! | hold-out g1 | 9.8% → 13.9% | 13.6% → 16.0% |
+//! | hold-out g2 | 2.1% → 3.3% | 7.4% → 11.9% |
+//! | hold-out g4 | 3.4% → 0.3% | 6.0% → 0.8% |
+//!
+//! On the dev scenes every metric gained a little: over the 12 true-geometry cells at seeds 0 and
+//! 1, fitted over pixel median, RMSE summed 6.01 → 5.90 and 5.93 → 5.81, mean colour 1.86 → 1.75
+//! and 1.79 → 1.62, texture contrast 5.33 → 5.21 and 5.49 → 5.40 (dev_2's input views at seed 1
+//! 0.52 → 0.48), and dev_1's lights met the 10% target at both seeds. The hold-out rooms did not:
+//! their lights went further off in 4 of 6 runs (g1's and g2's at both seeds), and at seed 1 g2's
+//! mean colour on the true geometry went from 0.12 / 0.14 / 0.11 to 0.17 / 0.18 / 0.12 of the
+//! baseline's (input / novel / relit); their 12 cells summed, RMSE 6.07 → 6.03 and 6.05 → 6.08,
+//! mean colour 1.60 → 1.62 and 1.81 → 1.83, texture contrast 3.80 → 3.74 and 4.08 → 4.10. With
+//! fitted materials the weak direction is set by their errors more than by the render noise: a
+//! `--refit-only` of dev_1's seed-0 fit with 256-spp estimates put it 40% off. The floor's
+//! shrinkage, sized by the noise at 16 spp, is a damping the fitted rooms rely on; a floor sized
+//! by the model's misfit would be the honest form of it (a prior towards a common radiance,
+//! measured below, was not). A solve at 64 spp also costs four times as much: 7 s → 28 s on dev_2
+//! (three views), three or four solves a fit.
+//!
 //! The noise also enters the robust weights. A pixel's residual holds its renders' Monte Carlo
 //! noise, which is skewed where a few paths carry the light (a ceiling lit only by bounces, at
 //! 16 spp: mostly too dark, now and then far too bright); weighted on the residual alone, the

@@ -202,8 +202,10 @@ pub fn median_materials(views: &[ViewObservation], n_parts: usize) -> Vec<Materi
     (0..n_parts as u32).map(|p| MaterialBinding::constant(pixel_median(views, p).unwrap_or([0.5; 3]), 0.7)).collect()
 }
 
-/// Samples per pixel of the per-emitter renders of the initial estimate.
-const ESTIMATE_SPP: u32 = 16;
+/// Samples per pixel of the per-emitter renders: the initial estimate's, and each of the light
+/// solve's two estimates (`refit::solve_lights`; what more samples did to the solve and to the
+/// fits: `light_solve`'s module docs).
+pub const ESTIMATE_SPP: u32 = 16;
 
 /// Unit-radiance images of every emitter slot in every view, at the views' sizes:
 /// `[view][slot][pixel]`.

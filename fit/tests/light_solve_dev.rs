@@ -1,0 +1,104 @@
+//! The global light solve from a dev scene's exact inputs: its true materials on its true
+//! geometry, the photos as the fit reads them. Whatever the solve gets wrong here is the solve's
+//! own error, not the fitted materials' or the coarse model's.
+//!
+//! With enough samples in the unit renders the solve is consistent: it recovers the ratios
+//! between the truth's lights. With fewer it is biased on a room whose lights light its views
+//! nearly alike: dev_1 (three lights, two outside its only view; as columns over its labelled
+//! pixels, its three renders' smallest singular value is 3% of their largest) comes out, over
+//! four pairs of seeds, 25–30% off at 16 samples per pixel, 14–16% at 64, 10–12% at 128 and
+//! 1.6–3.0% at 256, always its first light high and its second low. dev_4 (two lights, one
+//! view): 1.0–1.6%, 0.2–0.3%, 0–0.1%, 0–0.1%. The render noise's floor (`light_solve`'s module
+//! docs) shrinks the weak direction towards the minimum-norm answer, by more the noisier the
+//! renders; why the fit keeps its 16 samples all the same is there too. The test holds the solve
+//! to the truth at 256 samples and prints what it does at the fit's own `ESTIMATE_SPP`; dev_2's
+//! three views would make it three times dearer.
+
+#[allow(dead_code)] // shared with crates that use all of it
+#[path = "../../tests/src/dev_scenes.rs"]
+mod dev_scenes;
+#[path = "../../tests/src/not_run.rs"]
+mod not_run;
+
+use psc_fit::align::{align_view, AlignedPart};
+use psc_fit::light_solve::solve_with_part_scales;
+use psc_fit::lighting::{unit_renders_at, ESTIMATE_SPP};
+use psc_fit::observe::ViewObservation;
+use psc_render::scene::{LightRadiances, Scene};
+use psc_render::Renderer;
+
+/// The fit's working resolution (`--max-photo-pixels`' default).
+const MAX_PHOTO_PIXELS: usize = 131_072;
+/// Samples per pixel at which the solve is held to the truth.
+const CONSISTENCY_SPP: u32 = 256;
+
+struct ExactRoom {
+    renderer: Renderer,
+    views: Vec<ViewObservation>,
+    aligned: Vec<Vec<AlignedPart>>,
+    /// The truth's radiances in the renderer's slot order.
+    truth: Vec<[f32; 3]>,
+}
+
+fn exact_room(name: &str) -> Option<ExactRoom> {
+    let dir = dev_scenes::dev_scene(name, "light_solve_dev")?;
+    let scene = Scene::load_with_mesh(&dir, Some(&dir.join("truth/scene_true.obj"))).unwrap();
+    let materials = psc_render::truth::truth_materials(&scene, &mut Vec::new()).unwrap();
+    let renderer = Renderer::new(&scene, materials, &LightRadiances::unit(&scene)).unwrap();
+    let views: Vec<ViewObservation> = scene
+        .views
+        .iter()
+        .map(|v| ViewObservation::new(v, &scene.mesh.part_names, renderer.geometry(), MAX_PHOTO_PIXELS).unwrap())
+        .collect();
+    let n_parts = scene.mesh.part_names.len();
+    let aligned = views.iter().enumerate().map(|(i, o)| align_view(o, i, n_parts)).collect();
+    let truth_file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("truth/truth.json")).unwrap()).unwrap();
+    let truth = renderer
+        .slot_names()
+        .iter()
+        .map(|slot| {
+            let light = truth_file["lights"].as_array().unwrap().iter().find(|l| l["name"] == slot.as_str());
+            let rgb = light.unwrap_or_else(|| panic!("{name}: no true light `{slot}`"))["radiance_rgb"].clone();
+            serde_json::from_value(rgb).unwrap()
+        })
+        .collect();
+    Some(ExactRoom { renderer, views, aligned, truth })
+}
+
+fn luminance(c: [f32; 3]) -> f64 {
+    psc_base::color::REC709_WEIGHTS.iter().zip(c).map(|(w, v)| f64::from(*w) * f64::from(v)).sum()
+}
+
+/// Per light, solved over true luminance divided by their geometric mean, and how far apart the
+/// most and least scaled are (the eval's "between two lights").
+fn ratio_error(solved: &[[f32; 3]], truth: &[[f32; 3]]) -> (Vec<f64>, f64) {
+    let ratio: Vec<f64> = solved.iter().zip(truth).map(|(s, t)| luminance(*s) / luminance(*t)).collect();
+    let mean = (ratio.iter().map(|r| r.ln()).sum::<f64>() / ratio.len() as f64).exp();
+    let relative: Vec<f64> = ratio.iter().map(|r| r / mean).collect();
+    let (lo, hi) = relative.iter().fold((f64::MAX, 0.0f64), |(lo, hi), &r| (lo.min(r), hi.max(r)));
+    (relative, hi / lo - 1.0)
+}
+
+fn solve(room: &ExactRoom, spp: u32, seed: u64) -> (Vec<f64>, f64) {
+    let first = unit_renders_at(&room.renderer, &room.views, seed, spp).unwrap();
+    let second = unit_renders_at(&room.renderer, &room.views, seed + 1, spp).unwrap();
+    let solved = solve_with_part_scales(&room.views, &room.aligned, &first, &second).unwrap();
+    ratio_error(&solved.radiance, &room.truth)
+}
+
+#[test]
+fn the_solve_recovers_the_true_lights_from_exact_inputs() {
+    for name in ["dev_1", "dev_4"] {
+        let Some(room) = exact_room(name) else { continue };
+        let (per_light, error) = solve(&room, CONSISTENCY_SPP, 1);
+        let (fit_per_light, fit_error) = solve(&room, ESTIMATE_SPP, 1);
+        eprintln!(
+            "{name}: between two lights {:.1}% off at {CONSISTENCY_SPP} spp {per_light:.3?}, {:.1}% at the fit's \
+             {ESTIMATE_SPP} {fit_per_light:.3?}",
+            error * 100.0,
+            fit_error * 100.0
+        );
+        assert!(error < 0.05, "{name}: {:.1}% off the truth's ratio at {CONSISTENCY_SPP} spp", error * 100.0);
+    }
+}
