@@ -21,14 +21,14 @@ mod dev_scenes;
 mod not_run;
 
 use psc_fit::align::{align_view, AlignedPart};
+use psc_fit::eval::metrics::LightRatios;
 use psc_fit::light_solve::solve_with_part_scales;
 use psc_fit::lighting::{unit_renders_at, ESTIMATE_SPP};
 use psc_fit::observe::ViewObservation;
+use psc_fit::pipeline::DEFAULT_MAX_PHOTO_PIXELS;
 use psc_render::scene::{LightRadiances, Scene};
 use psc_render::Renderer;
 
-/// The fit's working resolution (`--max-photo-pixels`' default).
-const MAX_PHOTO_PIXELS: usize = 131_072;
 /// Samples per pixel at which the solve is held to the truth.
 const CONSISTENCY_SPP: u32 = 256;
 
@@ -36,7 +36,7 @@ struct ExactRoom {
     renderer: Renderer,
     views: Vec<ViewObservation>,
     aligned: Vec<Vec<AlignedPart>>,
-    /// The truth's radiances in the renderer's slot order.
+    /// The truth's area-light radiances, in the scene's (and the renderer's slot) order.
     truth: Vec<[f32; 3]>,
 }
 
@@ -48,57 +48,39 @@ fn exact_room(name: &str) -> Option<ExactRoom> {
     let views: Vec<ViewObservation> = scene
         .views
         .iter()
-        .map(|v| ViewObservation::new(v, &scene.mesh.part_names, renderer.geometry(), MAX_PHOTO_PIXELS).unwrap())
+        .map(|v| {
+            ViewObservation::new(v, &scene.mesh.part_names, renderer.geometry(), DEFAULT_MAX_PHOTO_PIXELS).unwrap()
+        })
         .collect();
     let n_parts = scene.mesh.part_names.len();
     let aligned = views.iter().enumerate().map(|(i, o)| align_view(o, i, n_parts)).collect();
-    let truth_file: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("truth/truth.json")).unwrap()).unwrap();
-    let truth = renderer
-        .slot_names()
-        .iter()
-        .map(|slot| {
-            let light = truth_file["lights"].as_array().unwrap().iter().find(|l| l["name"] == slot.as_str());
-            let rgb = light.unwrap_or_else(|| panic!("{name}: no true light `{slot}`"))["radiance_rgb"].clone();
-            serde_json::from_value(rgb).unwrap()
-        })
-        .collect();
+    let truth = psc_render::truth::truth_radiances(&scene, &mut Vec::new()).unwrap().lights;
     Some(ExactRoom { renderer, views, aligned, truth })
 }
 
-fn luminance(c: [f32; 3]) -> f64 {
-    psc_base::color::REC709_WEIGHTS.iter().zip(c).map(|(w, v)| f64::from(*w) * f64::from(v)).sum()
-}
-
-/// Per light, solved over true luminance divided by their geometric mean, and how far apart the
-/// most and least scaled are (the eval's "between two lights").
-fn ratio_error(solved: &[[f32; 3]], truth: &[[f32; 3]]) -> (Vec<f64>, f64) {
-    let ratio: Vec<f64> = solved.iter().zip(truth).map(|(s, t)| luminance(*s) / luminance(*t)).collect();
-    let mean = (ratio.iter().map(|r| r.ln()).sum::<f64>() / ratio.len() as f64).exp();
-    let relative: Vec<f64> = ratio.iter().map(|r| r / mean).collect();
-    let (lo, hi) = relative.iter().fold((f64::MAX, 0.0f64), |(lo, hi), &r| (lo.min(r), hi.max(r)));
-    (relative, hi / lo - 1.0)
-}
-
-fn solve(room: &ExactRoom, spp: u32, seed: u64) -> (Vec<f64>, f64) {
+/// The solve from two estimates of the unit renders at `spp`, against the truth's lights.
+fn solve(room: &ExactRoom, spp: u32, seed: u64) -> LightRatios {
     let first = unit_renders_at(&room.renderer, &room.views, seed, spp).unwrap();
     let second = unit_renders_at(&room.renderer, &room.views, seed + 1, spp).unwrap();
     let solved = solve_with_part_scales(&room.views, &room.aligned, &first, &second).unwrap();
-    ratio_error(&solved.radiance, &room.truth)
+    LightRatios::new(&solved.radiance[..room.truth.len()], &room.truth)
 }
 
 #[test]
 fn the_solve_recovers_the_true_lights_from_exact_inputs() {
     for name in ["dev_1", "dev_4"] {
         let Some(room) = exact_room(name) else { continue };
-        let (per_light, error) = solve(&room, CONSISTENCY_SPP, 1);
-        let (fit_per_light, fit_error) = solve(&room, ESTIMATE_SPP, 1);
+        let exact = solve(&room, CONSISTENCY_SPP, 1);
+        let fit = solve(&room, ESTIMATE_SPP, 1);
         eprintln!(
-            "{name}: between two lights {:.1}% off at {CONSISTENCY_SPP} spp {per_light:.3?}, {:.1}% at the fit's \
-             {ESTIMATE_SPP} {fit_per_light:.3?}",
-            error * 100.0,
-            fit_error * 100.0
+            "{name}: between two lights {:.1}% off at {CONSISTENCY_SPP} spp {:.3?}, {:.1}% at the fit's {ESTIMATE_SPP} \
+             {:.3?}",
+            exact.between_two() * 100.0,
+            exact.relative(),
+            fit.between_two() * 100.0,
+            fit.relative()
         );
+        let error = exact.between_two();
         assert!(error < 0.05, "{name}: {:.1}% off the truth's ratio at {CONSISTENCY_SPP} spp", error * 100.0);
     }
 }

@@ -33,6 +33,42 @@ pub use crate::contrast::erode;
 /// Gaussian smoothing (px) of the luma before the gradients of the contrast metric.
 pub use crate::contrast::SIGMA as CONTRAST_SIGMA;
 
+/// Fitted light radiances against the true ones. Albedo and light trade a global scale, so each
+/// light's fitted/true luminance ratio is compared with their geometric mean (`scale`).
+#[derive(Clone, Debug)]
+pub struct LightRatios {
+    /// Per light, fitted over true luminance.
+    pub ratios: Vec<f64>,
+    /// Their geometric mean: the global scale.
+    pub scale: f64,
+}
+
+impl LightRatios {
+    pub fn new(fitted: &[[f32; 3]], truth: &[[f32; 3]]) -> LightRatios {
+        let luminance = |c: &[f32; 3]| f64::from(psc_base::color::luminance(*c));
+        let ratios: Vec<f64> = fitted.iter().zip(truth).map(|(f, t)| luminance(f) / luminance(t).max(1e-12)).collect();
+        let scale = (ratios.iter().map(|r| r.max(1e-12).ln()).sum::<f64>() / ratios.len() as f64).exp();
+        LightRatios { ratios, scale }
+    }
+
+    /// Per light, its ratio over the global scale.
+    pub fn relative(&self) -> Vec<f64> {
+        self.ratios.iter().map(|r| r / self.scale).collect()
+    }
+
+    /// The largest relative deviation of one light from the global scale.
+    pub fn worst(&self) -> f64 {
+        self.ratios.iter().map(|r| (r / self.scale - 1.0).abs()).fold(0.0, f64::max)
+    }
+
+    /// The ratio between two lights off the truth's, the stricter reading: the most scaled light
+    /// over the least scaled, minus 1.
+    pub fn between_two(&self) -> f64 {
+        let (lo, hi) = self.ratios.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &r| (lo.min(r), hi.max(r)));
+        hi / lo.max(1e-12) - 1.0
+    }
+}
+
 /// The metrics of one part in one image.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PartMetrics {

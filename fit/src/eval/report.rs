@@ -138,27 +138,15 @@ impl Evaluation {
             }
         }
         if self.fitted_lights.len() > 1 && self.fitted_lights.len() == self.true_lights.len() {
-            // Albedo and light trade a global scale: compare each light's fitted/true ratio
-            // with their geometric mean (luminance).
-            let ratios: Vec<f64> = self
-                .fitted_lights
-                .iter()
-                .zip(&self.true_lights)
-                .map(|(f, t)| {
-                    f64::from(psc_base::color::luminance(*f)) / f64::from(psc_base::color::luminance(*t)).max(1e-12)
-                })
-                .collect();
-            let scale = (ratios.iter().map(|r| r.max(1e-12).ln()).sum::<f64>() / ratios.len() as f64).exp();
-            let rel: Vec<String> = ratios.iter().map(|r| format!("{:.3}", r / scale)).collect();
-            let worst = ratios.iter().map(|r| (r / scale - 1.0).abs()).fold(0.0, f64::max);
-            // The ratio between two lights, the stricter reading: the most and least scaled.
-            let (lo, hi) = ratios.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &r| (lo.min(r), hi.max(r)));
+            let lights = super::metrics::LightRatios::new(&self.fitted_lights, &self.true_lights);
+            let rel: Vec<String> = lights.relative().iter().map(|r| format!("{r:.3}")).collect();
             s.push_str(&format!(
                 "lights: fitted/true luminance per light over their geometric mean {} (worst {:.1}% off; between two \
-                 lights {:.1}% off; global scale {scale:.3})\n",
+                 lights {:.1}% off; global scale {:.3})\n",
                 rel.join(", "),
-                worst * 100.0,
-                (hi / lo.max(1e-12) - 1.0) * 100.0
+                lights.worst() * 100.0,
+                lights.between_two() * 100.0,
+                lights.scale
             ));
         }
         let judged: Vec<&GraphChoice> = self.graph_choice.iter().filter(|c| c.matches.is_some()).collect();
