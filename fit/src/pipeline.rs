@@ -430,13 +430,14 @@ fn solve_and_apply(
         .map(|((n, r), s)| format!("{n} ({:.1}, {:.1}, {:.1}) carries {:.0}%", r[0], r[1], r[2], s * 100.0))
         .collect();
     progress.note(&format!(
-        "{label}: lights solved from {} pixels (relative rms {:.3}, {:.0}% outliers): {}; change {:.1}%{}",
+        "{label}: lights solved from {} pixels (relative rms {:.3}, {:.0}% outliers): {}; change {:.1}%{}{}",
         solve.pixels,
         solve.relative_rms[1],
         solve.outliers * 100.0,
         lights.join(", "),
         change * 100.0,
-        exposure_note(inputs.views, &solve.exposure)
+        exposure_note(inputs.views, &solve.exposure),
+        spread_note(&result.slot_names, &solve)
     ));
     result.radiance = solve.radiance.clone();
     result.exposure = solve.exposure.clone();
@@ -462,4 +463,23 @@ fn exposure_note(views: &[ViewObservation], exposure: &[[f32; 3]]) -> String {
         .map(|(v, e)| format!("{} ({:.3}, {:.3}, {:.3})", v.name, e[0], e[1], e[2]))
         .collect();
     format!("; exposures {}", list.join(", "))
+}
+
+/// How far the photos determine the least determined ratio between two lights.
+fn spread_note(names: &[String], solve: &crate::light_solve::LightSolve) -> String {
+    let Some((i, j, sd)) = solve.least_determined_ratio() else { return String::new() };
+    let pair = format!("{} / {}", names[i], names[j]);
+    match sd {
+        Some(sd) if sd < crate::light_solve::DETERMINED_LOG_SD => {
+            format!(
+                "; the photos determine every ratio between lights, {pair} least: ±{:.0}% (1 sd)",
+                sd.exp_m1() * 100.0
+            )
+        }
+        Some(sd) => format!(
+            "; the photos do not determine the ratio {pair} (±{:.0}%, 1 sd): the solve's damping sets it",
+            sd.exp_m1() * 100.0
+        ),
+        None => format!("; the photos do not determine the ratio {pair} at all: the solve's damping sets it"),
+    }
 }

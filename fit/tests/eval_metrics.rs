@@ -3,7 +3,8 @@
 use std::collections::BTreeMap;
 
 use psc_fit::eval::metrics::{
-    colour_w1, contrast_samples, erode, mean_colour_error, part_metrics, rmse, ssim, wasserstein1, MIN_PART_PIXELS,
+    colour_w1, contrast_samples, erode, mean_colour_error, part_metrics, rmse, ssim, wasserstein1, LightRatios,
+    MIN_PART_PIXELS,
 };
 
 /// A small deterministic generator (xorshift), values in [0, 1).
@@ -216,4 +217,17 @@ fn parts_below_200_pixels_are_left_out() {
     // A render equal to the truth scores zero everywhere.
     let same = part_metrics(&truth, &truth, w, h, &labels, &names);
     assert_eq!((same[0].rmse, same[0].mean_colour, same[0].colour_w1, same[0].contrast_w1), (0.0, 0.0, 0.0, Some(0.0)));
+}
+
+/// The light figures against ratios worked by hand: lights fitted at 2×, 1× and 4× their truth's
+/// luminance (grey, so luminance is the value).
+#[test]
+fn light_ratios_name_the_pair_furthest_off() {
+    let truth = [[10.0f32; 3], [20.0; 3], [5.0; 3]];
+    let fitted = [[20.0f32; 3], [20.0; 3], [20.0; 3]];
+    let lights = LightRatios::new(&fitted, &truth);
+    assert!((lights.scale - 2.0).abs() < 1e-6, "geometric mean of 2, 1, 4: {}", lights.scale);
+    assert!((lights.between_two() - 3.0).abs() < 1e-6, "4 over 1, minus 1: {}", lights.between_two());
+    assert!((lights.worst() - 1.0).abs() < 1e-6, "4 / 2 − 1: {}", lights.worst());
+    assert_eq!(lights.extreme_pair(), (2, 1));
 }

@@ -22,7 +22,7 @@ mod not_run;
 
 use psc_fit::align::{align_view, AlignedPart};
 use psc_fit::eval::metrics::LightRatios;
-use psc_fit::light_solve::solve_with_part_scales;
+use psc_fit::light_solve::{solve_with_part_scales, LightSolve};
 use psc_fit::lighting::{unit_renders_at, ESTIMATE_SPP};
 use psc_fit::observe::ViewObservation;
 use psc_fit::pipeline::DEFAULT_MAX_PHOTO_PIXELS;
@@ -59,28 +59,51 @@ fn exact_room(name: &str) -> Option<ExactRoom> {
 }
 
 /// The solve from two estimates of the unit renders at `spp`, against the truth's lights.
-fn solve(room: &ExactRoom, spp: u32, seed: u64) -> LightRatios {
+fn solve(room: &ExactRoom, spp: u32, seed: u64) -> (LightRatios, LightSolve) {
     let first = unit_renders_at(&room.renderer, &room.views, seed, spp).unwrap();
     let second = unit_renders_at(&room.renderer, &room.views, seed + 1, spp).unwrap();
     let solved = solve_with_part_scales(&room.views, &room.aligned, &first, &second).unwrap();
-    LightRatios::new(&solved.radiance[..room.truth.len()], &room.truth)
+    (LightRatios::new(&solved.radiance[..room.truth.len()], &room.truth), solved)
+}
+
+/// Per pair of lights, its log ratio's error against the truth over the spread the solve
+/// states for it (`None` where it states none).
+fn errors_in_stated_sd(ratios: &LightRatios, solved: &LightSolve) -> Vec<Option<f64>> {
+    let n = ratios.ratios.len();
+    let pairs = (0..n).flat_map(|i| (i + 1..n).map(move |j| (i, j)));
+    pairs
+        .map(|(i, j)| {
+            let error = (ratios.ratios[i] / ratios.ratios[j]).ln().abs();
+            solved.log_ratio_sd[i][j].map(|sd| error / f64::from(sd).max(1e-9))
+        })
+        .collect()
 }
 
 #[test]
 fn the_solve_recovers_the_true_lights_from_exact_inputs() {
     for name in ["dev_1", "dev_4"] {
         let Some(room) = exact_room(name) else { continue };
-        let exact = solve(&room, CONSISTENCY_SPP, 1);
-        let fit = solve(&room, ESTIMATE_SPP, 1);
+        let (exact, exact_solve) = solve(&room, CONSISTENCY_SPP, 1);
+        let (fit, fit_solve) = solve(&room, ESTIMATE_SPP, 1);
+        let stated =
+            |s: &LightSolve| s.least_determined_ratio().and_then(|(_, _, sd)| sd).map(|sd| sd.exp_m1() * 100.0);
         eprintln!(
-            "{name}: between two lights {:.1}% off at {CONSISTENCY_SPP} spp {:.3?}, {:.1}% at the fit's {ESTIMATE_SPP} \
-             {:.3?}",
+            "{name}: between two lights {:.1}% off at {CONSISTENCY_SPP} spp {:.3?} (stated spread, least determined \
+             pair: {:.1?}%), {:.1}% at the fit's {ESTIMATE_SPP} {:.3?} ({:.1?}%)",
             exact.between_two() * 100.0,
             exact.relative(),
+            stated(&exact_solve),
             fit.between_two() * 100.0,
-            fit.relative()
+            fit.relative(),
+            stated(&fit_solve)
         );
         let error = exact.between_two();
         assert!(error < 0.05, "{name}: {:.1}% off the truth's ratio at {CONSISTENCY_SPP} spp", error * 100.0);
+        // With the renders' noise small, the solve is the unregularised estimate whose spread
+        // it states: every pair's error lies within three of its standard deviations.
+        for (pair, error) in errors_in_stated_sd(&exact, &exact_solve).into_iter().enumerate() {
+            let error = error.unwrap_or_else(|| panic!("{name}: pair {pair} has no stated spread"));
+            assert!(error < 3.0, "{name}: pair {pair} is {error:.1} stated sd off the truth");
+        }
     }
 }

@@ -6,7 +6,7 @@
 //!
 //! Owns: reading a fit folder for display ([`fit_folder`]), the pictures derived for the page
 //! (difference images, crops, thumbnails: [`pictures`]), inline SVG plots ([`svg`]) and the page
-//! itself ([`page`], [`html`]). Every image is inlined as a `data:` URI; a Content-Security-Policy
+//! itself ([`page`], [`html`], the lights section in `lights`). Every image is inlined as a `data:` URI; a Content-Security-Policy
 //! forbids any other source, so the page never fetches anything.
 //!
 //! Must never: change the fit folder except for writing `report.html` (atomically); fit, render
@@ -16,6 +16,7 @@
 
 pub mod fit_folder;
 pub mod html;
+mod lights;
 pub mod page;
 pub mod pictures;
 pub mod svg;

@@ -111,6 +111,44 @@ fn exposures_of(result: &Value) -> Result<BTreeMap<String, [f32; 3]>, String> {
         .collect()
 }
 
+/// The spread the fit's last light solve states for the log ratio of every pair of lights (a
+/// fit's `result.json`, `lights.solve_rounds[-1].solve.log_ratio_sd`: `[i][j]`, a standard
+/// deviation or `null` where the photos do not determine it); `None` when the file or the
+/// entry is absent (fits under known lights, fits from before it was recorded).
+pub fn read_light_ratio_spread(result_path: &Path) -> Result<Option<Vec<Vec<Option<f32>>>>, String> {
+    if !result_path.is_file() {
+        return Ok(None);
+    }
+    let result = crate::json::read_file(result_path).map_err(|e| e.to_string())?;
+    let rounds = result.pointer("/lights/solve_rounds").and_then(Value::as_array);
+    let Some(entry) = rounds.and_then(|r| r.last()).and_then(|r| r.pointer("/solve/log_ratio_sd")) else {
+        return Ok(None);
+    };
+    let bad = || {
+        format!(
+            "{}: lights.solve_rounds: log_ratio_sd is not a square table of numbers or nulls",
+            result_path.display()
+        )
+    };
+    let rows = entry.as_array().ok_or_else(bad)?;
+    let table: Vec<Vec<Option<f32>>> = rows
+        .iter()
+        .map(|row| {
+            let row = row.as_array().ok_or_else(bad)?;
+            row.iter()
+                .map(|v| match v {
+                    Value::Null => Ok(None),
+                    v => v.as_f64().filter(|x| x.is_finite() && *x >= 0.0).map(|x| Some(x as f32)).ok_or_else(bad),
+                })
+                .collect()
+        })
+        .collect::<Result<_, String>>()?;
+    if table.iter().any(|row| row.len() != table.len()) {
+        return Err(bad());
+    }
+    Ok(Some(table))
+}
+
 /// The scene folder a fit's `result.json` names: as written (absolute, or relative to the
 /// working directory `psc fit` ran in) when it holds a `scene.json`, else relative to the fit
 /// folder's parent (a fit output moved together with its scene).
@@ -124,4 +162,33 @@ pub fn resolve_scene(fit_dir: &Path, named: &str) -> Option<PathBuf> {
     }
     let beside = fit_dir.parent().unwrap_or(Path::new(".")).join(&p);
     beside.join("scene.json").is_file().then_some(beside)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::read_light_ratio_spread;
+
+    fn spread_of(result: &str) -> Result<Option<Vec<Vec<Option<f32>>>>, String> {
+        let dir = tempfile::Builder::new().prefix("psc-fitted-").tempdir().unwrap();
+        let path = dir.path().join("result.json");
+        std::fs::write(&path, result).unwrap();
+        read_light_ratio_spread(&path)
+    }
+
+    #[test]
+    fn the_last_solve_rounds_spread_is_read_and_a_malformed_one_refused() {
+        let rounds = r#"{"lights": {"solve_rounds": [
+            {"solve": {"log_ratio_sd": [[0, 9], [9, 0]]}},
+            {"solve": {"log_ratio_sd": [[0, 0.5], [null, 0]]}}]}}"#;
+        assert_eq!(spread_of(rounds).unwrap(), Some(vec![vec![Some(0.0), Some(0.5)], vec![None, Some(0.0)]]));
+        assert_eq!(spread_of(r#"{"lights": {"solve_rounds": []}}"#).unwrap(), None);
+        assert_eq!(spread_of(r#"{"lights": {}}"#).unwrap(), None);
+        for bad in [r#"[[0, "x"], [1, 0]]"#, r#"[[0, 1]]"#, r#"[[0, -1], [1, 0]]"#, r#"{"a": 1}"#] {
+            let result = format!(r#"{{"lights": {{"solve_rounds": [{{"solve": {{"log_ratio_sd": {bad}}}}}]}}}}"#);
+            let error = spread_of(&result).unwrap_err();
+            assert!(error.contains("log_ratio_sd"), "{bad}: {error}");
+        }
+        let missing = std::path::Path::new("/nonexistent/result.json");
+        assert_eq!(read_light_ratio_spread(missing).unwrap(), None);
+    }
 }

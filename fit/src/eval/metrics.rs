@@ -61,6 +61,14 @@ impl LightRatios {
         self.ratios.iter().map(|r| (r / self.scale - 1.0).abs()).fold(0.0, f64::max)
     }
 
+    /// The two lights whose ratio is furthest off the truth's: the most scaled and the least.
+    pub fn extreme_pair(&self) -> (usize, usize) {
+        let by = |better: fn(f64, f64) -> bool| {
+            (0..self.ratios.len()).fold(0, |best, k| if better(self.ratios[k], self.ratios[best]) { k } else { best })
+        };
+        (by(|a, b| a > b), by(|a, b| a < b))
+    }
+
     /// The ratio between two lights off the truth's, the stricter reading: the most scaled light
     /// over the least scaled, minus 1.
     pub fn between_two(&self) -> f64 {

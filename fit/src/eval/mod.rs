@@ -231,6 +231,8 @@ pub struct Evaluation {
     /// The lights every method but the oracle renders under (scene order), and the true ones.
     pub fitted_lights: Vec<[f32; 3]>,
     pub true_lights: Vec<[f32; 3]>,
+    /// The spread the fit's light solve states for each pair's log ratio (result.json), if any.
+    pub stated_light_spread: Option<Vec<Vec<Option<f32>>>>,
     /// Per input view (scene order), the fit's RGB exposure its renders under the fit's lights
     /// are multiplied by.
     pub input_exposure: Vec<(String, [f32; 3])>,
@@ -353,6 +355,7 @@ pub fn evaluate(
     let (fitted_lights, fitted_env) = backend::read_lights_file(&fit.lights, &model)?;
     let fitted_radiances = Radiances { lights: fitted_lights.clone(), environment: fitted_env };
     let exposures = psc_runtime::fitted::read_exposures(&fit.result).map_err(EvalError)?;
+    let stated_light_spread = psc_runtime::fitted::read_light_ratio_spread(&fit.result).map_err(EvalError)?;
     let assigned_parts = assigned_part_names(&fit.materials)?;
     let fitted_model = model.assigned_materials(&fit.materials, library)?;
     let graph_choice = graph_choices(&fit.materials, &truth.part_kinds, library)?;
@@ -479,6 +482,7 @@ pub fn evaluate(
         unseen_floors,
         fitted_lights,
         true_lights: truth.lights.lights.clone(),
+        stated_light_spread,
         input_exposure,
         images,
         graph_choice,

@@ -142,10 +142,11 @@ impl Evaluation {
             let rel: Vec<String> = lights.relative().iter().map(|r| format!("{r:.3}")).collect();
             s.push_str(&format!(
                 "lights: fitted/true luminance per light over their geometric mean {} (worst {:.1}% off; between two \
-                 lights {:.1}% off; global scale {:.3})\n",
+                 lights {:.1}% off{}; global scale {:.3})\n",
                 rel.join(", "),
                 lights.worst() * 100.0,
                 lights.between_two() * 100.0,
+                self.stated_spread_note(&lights),
                 lights.scale
             ));
         }
@@ -171,6 +172,20 @@ impl Evaluation {
         let times: Vec<String> = self.timings.iter().map(|(n, t)| format!("{n} {t:.1} s")).collect();
         s.push_str(&format!("time: {} (wall {:.1} s)\n", times.join(", "), self.wall_seconds));
         s
+    }
+
+    /// What the fit stated for the pair of lights furthest off the truth's ratio: the spread its
+    /// light solve gave that pair's log ratio (result.json), beside the error it turned out to have.
+    fn stated_spread_note(&self, lights: &super::metrics::LightRatios) -> String {
+        let (hi, lo) = lights.extreme_pair();
+        let Some(table) = self.stated_light_spread.as_ref().filter(|_| hi != lo) else { return String::new() };
+        match table.get(hi).and_then(|row| row.get(lo)) {
+            Some(Some(sd)) if *sd < crate::light_solve::DETERMINED_LOG_SD => {
+                format!(" against the ±{:.0}% (1 sd) the fit stated for that pair", sd.exp_m1() * 100.0)
+            }
+            Some(_) => ", a pair the fit stated its photos do not determine".into(),
+            None => String::new(),
+        }
     }
 
     /// The evaluation as JSON: options, definitions, baselines, rows, ratios, per-image and
@@ -277,11 +292,13 @@ impl Evaluation {
                 "flat_fitted": "constant albedo per part from the pixel median, multiplied by photo mean / render mean per channel (linear; pixels of the input views labelled as the part, showing the part in the coarse model's G-buffer, the render clipped at 1 as the photo is; the fit's lights and exposures) and clamped to [0, 1], flat_iterations times; roughness: the fitted material's mean over the part's input-view pixels where materials.json names the part, else 0.7",
                 "oracle": "the true materials under the true lights",
                 "unseen_floors": "per geometry and view kind whose images show a part no input view shows: the fitted row with every other part's term 0, over the pixel median's row; the fitted / pixel median ratio cannot go below it by fitting the photographed parts",
+                "stated_log_ratio_sd": "lights.stated_log_ratio_sd[i][j]: the standard deviation of ln(L_i / L_j) (luminances) that the fit's last light solve stated (result.json), from the cluster-robust spread its misfit leaves; null where the photos do not determine it, absent for fits that do not record it",
                 "exposure": "renders of an input view under the fit's lights (every method but the oracle) are multiplied by the fit's RGB exposure of that view (lights.input_exposure); novel and relit views at 1",
             },
             "lights": {
                 "fitted": self.fitted_lights.iter().map(rgb).collect::<Vec<_>>(),
                 "true": self.true_lights.iter().map(rgb).collect::<Vec<_>>(),
+                "stated_log_ratio_sd": self.stated_light_spread,
                 "input_exposure": self.input_exposure.iter().map(|(v, e)| (v.clone(), rgb(e))).collect::<serde_json::Map<_, _>>(),
             },
             "baselines": {
