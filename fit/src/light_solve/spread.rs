@@ -3,21 +3,21 @@
 //!
 //! The solve's pixels are not independent observations: a wrong albedo, a texture's phase or a
 //! misaligned model puts an error on a whole part, not on one pixel. So the spread is the
-//! cluster-robust sandwich `H⁺ M H⁺` of the solve's weighted least squares, with the clusters
-//! a part in a view: `H = Σ_p w_p J_p J_pᵀ` and `M = Σ_c g_c g_cᵀ` with `g_c = Σ_{p∈c} w_p r_p J_p`,
-//! where `J_p` is the gradient of pixel p's model value with respect to every unknown the solve
-//! fits (the radiances, the part factors and the exposures, each on a log scale so that the
-//! two scale gauges the geometric means fix are exact null directions of `H`), `r_p` its
-//! residual and `w_p` its final robust weight. Fitting the part factors costs the radiances
-//! information, and the sandwich counts it: a light that only a part's own factor could stand
-//! in for is undetermined.
+//! cluster-robust sandwich `H⁺ M H⁺` of the solve's robust least squares, with the clusters a
+//! part in a view: `M = Σ_c g_c g_cᵀ` with `g_c = Σ_{p∈c} w_p r_p J_p`, where `J_p` is the
+//! gradient of pixel p's model value with respect to every unknown the solve fits (the
+//! radiances, the part factors and the exposures, each on a log scale so that the two scale
+//! gauges the geometric means fix are exact null directions, which are pinned), `r_p` its
+//! residual and `w_p` its final robust weight; and `H = Σ_p c_p (J_p^A J_p^Bᵀ + J_p^B J_p^Aᵀ)/2`,
+//! from the gradients under each of the two render estimates (their cross products, as the
+//! solve takes, so that render noise does not pass for information) and the Cauchy loss's
+//! curvature `c_p`, not its weight (the M-estimator sandwich). Fitting the part factors costs
+//! the radiances information, and the sandwich counts it: a light that only a part's own factor
+//! could stand in for is undetermined.
 //!
-//! The Hessian takes the cross products of the two render estimates, as the solve does, so that
-//! render noise does not pass for information, and the Cauchy loss's curvature, not its weight
-//! (the M-estimator sandwich). On synthetic rooms whose misfit is a random gradient across each
-//! of twelve parts (the tests below), the stated spread is 1.1× the spread over 60 draws, for
-//! lights the parts tell apart well and for lights they barely do; with the weights in place of
-//! the curvature it was 0.7×.
+//! On synthetic rooms whose misfit is a random gradient across each of twelve parts (the tests
+//! below), the stated spread is 1.1× the spread over 60 draws, for lights the parts tell apart
+//! well and for lights they barely do; with the weights in place of the curvature it was 0.7×.
 //!
 //! This is the spread of the unregularised estimate, that is of what the photos determine. The
 //! solve itself shrinks the directions below its noise floor (see the module docs), which
@@ -37,12 +37,12 @@
 //! | hold-out g1 | 3, one view | ±5235%, ±2291% | 7.7%, 10.8% |
 //!
 //! Every two-light room's error is within its stated 1 sd. dev_1's and g1's third direction
-//! (their two lights outside the view) is not in their photos at all under the fitted
-//! materials' misfit, so their ratios are the damping's, not the data's. It is not only the
-//! renders' noise: with 256-spp estimates (the fit's are 16) the same dev_1 fit states ±45%
-//! and comes out 40% off, g1 ±20% and 17.7% off. Given dev_1's exact inputs
-//! (`fit/tests/light_solve_dev.rs`) it states ±12% at 256 spp and is 1.6% off, but ±1756% at
-//! 16, where it is 25% off: there the renders' noise alone hides the direction.
+//! (their two lights outside the view) is not in their photos at all at the fit's 16 spp, so
+//! their ratios are the damping's, not the data's. Both the render noise and the fitted
+//! materials' misfit hide it: with 256-spp estimates the same dev_1 fit states ±45% and comes
+//! out 40% off (g1 ±20% and 17.7%); given dev_1's exact inputs (`fit/tests/light_solve_dev.rs`)
+//! the solve states ±1756% at 16 spp, where it is 25% off, and ±12% at 256, where it is 1.6%
+//! off.
 
 use nalgebra::{DMatrix, DVector};
 
