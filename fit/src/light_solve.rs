@@ -124,11 +124,11 @@
 //! pixels nearly alike; across this stop's variants it ranged from 7.8% to 10.8%).
 //!
 //! How far the photos determine each ratio between two lights is stated with every solve
-//! ([`LightSolve::log_ratio_sd`], from [`spread`]): dev_1's and the hold-out room g1's ratio
-//! between their two lights outside their only view is not determined at all (±1000% and more
-//! at 1 sd), so what the solve gives there is its damping's choice. Three choices were measured
-//! on one `--refit-only` round of stored fits at seeds 0 and 1 (dev_1 8.9% and 14.4% off, g1
-//! 7.7% and 10.8% as is) and left out:
+//! ([`LightSolve::log_ratio_sd`], from `light_solve/spread.rs`): dev_1's and the hold-out room
+//! g1's ratio between their two lights outside their only view is not determined at all
+//! (±1000% and more at 1 sd), so what the solve gives there is its damping's choice. Three
+//! choices were measured on one `--refit-only` round of stored fits at seeds 0 and 1 (dev_1
+//! 8.9% and 14.4% off, g1 7.7% and 10.8% as is) and left out:
 //! - the whole direction shrunk (a ridge sized by the misfit's spread, empirical Bayes):
 //!   dev_1 18.5% and 27.0%, g1 7.9% and 8.5%, the minimum-norm answer;
 //! - the floor's shrinkage towards one common radiance instead of towards 0: dev_1 4.2% and
@@ -206,8 +206,8 @@ pub struct LightSolve {
     #[serde(default)]
     pub exposure: Vec<[f32; 3]>,
     /// Per pair of slots, the standard deviation of the log ratio of their luminances that the
-    /// model's misfit leaves ([`spread`]): how far the photos determine that ratio. `None`
-    /// where they do not determine it at all, or a light is at its non-negativity bound.
+    /// model's misfit leaves (`light_solve/spread.rs`): how far the photos determine that
+    /// ratio. `None` where they do not determine it at all, or a light is at its bound.
     #[serde(default)]
     pub log_ratio_sd: Vec<Vec<Option<f32>>>,
 }
