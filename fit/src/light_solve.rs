@@ -216,6 +216,12 @@ pub struct LightSolve {
 /// 2 either way) is reported as not determined by the photos.
 pub const DETERMINED_LOG_SD: f32 = std::f32::consts::LN_2;
 
+/// A log ratio's standard deviation as the percentage the ratio's 1-sd factor `e^sd` lies
+/// above 1 (how `psc fit`, `psc eval` and the report state a spread).
+pub fn spread_percent(log_sd: f32) -> f32 {
+    log_sd.exp_m1() * 100.0
+}
+
 impl LightSolve {
     /// The pair of lights whose ratio the photos determine least ([`LightSolve::log_ratio_sd`]),
     /// with that standard deviation (`None`: not determined at all); `None` with fewer than two

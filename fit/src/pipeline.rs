@@ -467,18 +467,19 @@ fn exposure_note(views: &[ViewObservation], exposure: &[[f32; 3]]) -> String {
 
 /// How far the photos determine the least determined ratio between two lights.
 fn spread_note(names: &[String], solve: &crate::light_solve::LightSolve) -> String {
+    use crate::light_solve::{spread_percent, DETERMINED_LOG_SD};
     let Some((i, j, sd)) = solve.least_determined_ratio() else { return String::new() };
     let pair = format!("{} / {}", names[i], names[j]);
     match sd {
-        Some(sd) if sd < crate::light_solve::DETERMINED_LOG_SD => {
+        Some(sd) if sd < DETERMINED_LOG_SD => {
             format!(
                 "; the photos determine every ratio between lights, {pair} least: ±{:.0}% (1 sd)",
-                sd.exp_m1() * 100.0
+                spread_percent(sd)
             )
         }
         Some(sd) => format!(
             "; the photos do not determine the ratio {pair} (±{:.0}%, 1 sd): the solve's damping sets it",
-            sd.exp_m1() * 100.0
+            spread_percent(sd)
         ),
         None => format!("; the photos do not determine the ratio {pair} at all: the solve's damping sets it"),
     }

@@ -22,7 +22,7 @@ mod not_run;
 
 use psc_fit::align::{align_view, AlignedPart};
 use psc_fit::eval::metrics::LightRatios;
-use psc_fit::light_solve::{solve_with_part_scales, LightSolve};
+use psc_fit::light_solve::{solve_with_part_scales, spread_percent, LightSolve};
 use psc_fit::lighting::{unit_renders_at, ESTIMATE_SPP};
 use psc_fit::observe::ViewObservation;
 use psc_fit::pipeline::DEFAULT_MAX_PHOTO_PIXELS;
@@ -85,8 +85,7 @@ fn the_solve_recovers_the_true_lights_from_exact_inputs() {
         let Some(room) = exact_room(name) else { continue };
         let (exact, exact_solve) = solve(&room, CONSISTENCY_SPP, 1);
         let (fit, fit_solve) = solve(&room, ESTIMATE_SPP, 1);
-        let stated =
-            |s: &LightSolve| s.least_determined_ratio().and_then(|(_, _, sd)| sd).map(|sd| sd.exp_m1() * 100.0);
+        let stated = |s: &LightSolve| s.least_determined_ratio().and_then(|(_, _, sd)| sd).map(spread_percent);
         eprintln!(
             "{name}: between two lights {:.1}% off at {CONSISTENCY_SPP} spp {:.3?} (stated spread, least determined \
              pair: {:.1?}%), {:.1}% at the fit's {ESTIMATE_SPP} {:.3?} ({:.1?}%)",

@@ -84,13 +84,12 @@ pub(crate) fn lights(fit: &FitFolder) -> String {
         s.push_str("<p>Global light solves of the re-fit rounds (largest relative change of a light against the round before; the fit's residual).</p>");
         s.push_str(&table(&["round", "change", "pixels", "relative RMS (r, g, b)", "outlier fraction"], &rows));
     }
-    s + &ratio_spread(fit, &list) + &exposures(fit)
+    s + &ratio_spread(rounds.map(Vec::as_slice), &list) + &exposures(fit)
 }
 
 /// How far the photos determine the ratio between every two lights: the spread the last light
 /// solve states for its log ratio (`log_ratio_sd`), as a percentage either way at 1 sd.
-fn ratio_spread(fit: &FitFolder, lights: &[Value]) -> String {
-    let rounds = fit.result.pointer("/lights/solve_rounds").and_then(Value::as_array);
+fn ratio_spread(rounds: Option<&[Value]>, lights: &[Value]) -> String {
     let Some(table_of) = rounds.and_then(|r| r.last()).and_then(|r| r.pointer("/solve/log_ratio_sd")) else {
         return String::new();
     };

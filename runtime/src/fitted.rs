@@ -83,15 +83,32 @@ impl FitOutput {
     }
 }
 
-/// The per-view RGB exposures in a fit's `result.json` (`{"lights": {"exposure_rgb": {view:
-/// [r, g, b]}}}`); empty when the file or the entry is absent. A present but unreadable file,
-/// or an exposure that is not three finite positive numbers, is an error.
-pub fn read_exposures(result_path: &Path) -> Result<BTreeMap<String, [f32; 3]>, String> {
+/// What a fit's `result.json` records of its lights beyond `lights.json`, read from one pass
+/// over the file.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ResultLights {
+    /// Per view, its RGB exposure (`lights.exposure_rgb`); empty when absent.
+    pub exposures: BTreeMap<String, [f32; 3]>,
+    /// The spread the last light solve stated for the log ratio of every pair of lights
+    /// (`lights.solve_rounds[-1].solve.log_ratio_sd`: `[i][j]`, a standard deviation or `null`
+    /// where the photos do not determine it); `None` when absent (fits under known lights, fits
+    /// from before it was recorded).
+    pub ratio_spread: Option<Vec<Vec<Option<f32>>>>,
+}
+
+/// [`ResultLights`] of a fit's `result.json`; empty when the file is absent. A present but
+/// unreadable file, an exposure that is not three finite positive numbers or a spread that is
+/// not a square table of non-negative numbers and nulls is an error.
+pub fn read_result_lights(result_path: &Path) -> Result<ResultLights, String> {
     if !result_path.is_file() {
-        return Ok(BTreeMap::new());
+        return Ok(ResultLights::default());
     }
     let result = crate::json::read_file(result_path).map_err(|e| e.to_string())?;
-    exposures_of(&result).map_err(|e| format!("{}: {e}", result_path.display()))
+    let located = |e: String| format!("{}: {e}", result_path.display());
+    Ok(ResultLights {
+        exposures: exposures_of(&result).map_err(located)?,
+        ratio_spread: ratio_spread_of(&result).map_err(located)?,
+    })
 }
 
 fn exposures_of(result: &Value) -> Result<BTreeMap<String, [f32; 3]>, String> {
@@ -111,25 +128,12 @@ fn exposures_of(result: &Value) -> Result<BTreeMap<String, [f32; 3]>, String> {
         .collect()
 }
 
-/// The spread the fit's last light solve states for the log ratio of every pair of lights (a
-/// fit's `result.json`, `lights.solve_rounds[-1].solve.log_ratio_sd`: `[i][j]`, a standard
-/// deviation or `null` where the photos do not determine it); `None` when the file or the
-/// entry is absent (fits under known lights, fits from before it was recorded).
-pub fn read_light_ratio_spread(result_path: &Path) -> Result<Option<Vec<Vec<Option<f32>>>>, String> {
-    if !result_path.is_file() {
-        return Ok(None);
-    }
-    let result = crate::json::read_file(result_path).map_err(|e| e.to_string())?;
+fn ratio_spread_of(result: &Value) -> Result<Option<Vec<Vec<Option<f32>>>>, String> {
     let rounds = result.pointer("/lights/solve_rounds").and_then(Value::as_array);
     let Some(entry) = rounds.and_then(|r| r.last()).and_then(|r| r.pointer("/solve/log_ratio_sd")) else {
         return Ok(None);
     };
-    let bad = || {
-        format!(
-            "{}: lights.solve_rounds: log_ratio_sd is not a square table of numbers or nulls",
-            result_path.display()
-        )
-    };
+    let bad = || "lights.solve_rounds: log_ratio_sd is not a square table of numbers or nulls".to_string();
     let rows = entry.as_array().ok_or_else(bad)?;
     let table: Vec<Vec<Option<f32>>> = rows
         .iter()
@@ -166,13 +170,13 @@ pub fn resolve_scene(fit_dir: &Path, named: &str) -> Option<PathBuf> {
 
 #[cfg(test)]
 mod tests {
-    use super::read_light_ratio_spread;
+    use super::{read_result_lights, ResultLights};
 
     fn spread_of(result: &str) -> Result<Option<Vec<Vec<Option<f32>>>>, String> {
         let dir = tempfile::Builder::new().prefix("psc-fitted-").tempdir().unwrap();
         let path = dir.path().join("result.json");
         std::fs::write(&path, result).unwrap();
-        read_light_ratio_spread(&path)
+        read_result_lights(&path).map(|lights| lights.ratio_spread)
     }
 
     #[test]
@@ -189,6 +193,6 @@ mod tests {
             assert!(error.contains("log_ratio_sd"), "{bad}: {error}");
         }
         let missing = std::path::Path::new("/nonexistent/result.json");
-        assert_eq!(read_light_ratio_spread(missing).unwrap(), None);
+        assert_eq!(read_result_lights(missing).unwrap(), ResultLights::default());
     }
 }

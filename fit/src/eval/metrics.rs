@@ -61,7 +61,8 @@ impl LightRatios {
         self.ratios.iter().map(|r| (r / self.scale - 1.0).abs()).fold(0.0, f64::max)
     }
 
-    /// The two lights whose ratio is furthest off the truth's: the most scaled and the least.
+    /// The two lights whose ratio is furthest off the truth's: the most scaled and the least
+    /// (light 0 twice without lights).
     pub fn extreme_pair(&self) -> (usize, usize) {
         let by = |better: fn(f64, f64) -> bool| {
             (0..self.ratios.len()).fold(0, |best, k| if better(self.ratios[k], self.ratios[best]) { k } else { best })
@@ -70,10 +71,10 @@ impl LightRatios {
     }
 
     /// The ratio between two lights off the truth's, the stricter reading: the most scaled light
-    /// over the least scaled, minus 1.
+    /// over the least scaled, minus 1 (0 without lights).
     pub fn between_two(&self) -> f64 {
-        let (lo, hi) = self.ratios.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &r| (lo.min(r), hi.max(r)));
-        hi / lo.max(1e-12) - 1.0
+        let (hi, lo) = self.extreme_pair();
+        self.ratios.get(hi).zip(self.ratios.get(lo)).map_or(0.0, |(hi, lo)| hi / lo.max(1e-12) - 1.0)
     }
 }
 

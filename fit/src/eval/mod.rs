@@ -354,8 +354,8 @@ pub fn evaluate(
     warnings.extend(truth.warnings.iter().cloned());
     let (fitted_lights, fitted_env) = backend::read_lights_file(&fit.lights, &model)?;
     let fitted_radiances = Radiances { lights: fitted_lights.clone(), environment: fitted_env };
-    let exposures = psc_runtime::fitted::read_exposures(&fit.result).map_err(EvalError)?;
-    let stated_light_spread = psc_runtime::fitted::read_light_ratio_spread(&fit.result).map_err(EvalError)?;
+    let psc_runtime::fitted::ResultLights { exposures, ratio_spread: stated_light_spread } =
+        psc_runtime::fitted::read_result_lights(&fit.result).map_err(EvalError)?;
     let assigned_parts = assigned_part_names(&fit.materials)?;
     let fitted_model = model.assigned_materials(&fit.materials, library)?;
     let graph_choice = graph_choices(&fit.materials, &truth.part_kinds, library)?;

@@ -181,7 +181,10 @@ impl Evaluation {
         let Some(table) = self.stated_light_spread.as_ref().filter(|_| hi != lo) else { return String::new() };
         match table.get(hi).and_then(|row| row.get(lo)) {
             Some(Some(sd)) if *sd < crate::light_solve::DETERMINED_LOG_SD => {
-                format!(" against the ±{:.0}% (1 sd) the fit stated for that pair", sd.exp_m1() * 100.0)
+                format!(
+                    " against the ±{:.0}% (1 sd) the fit stated for that pair",
+                    crate::light_solve::spread_percent(*sd)
+                )
             }
             Some(_) => ", a pair the fit stated its photos do not determine".into(),
             None => String::new(),

@@ -201,8 +201,7 @@ pub(super) fn log_radiance_spread(samples: &Samples, solve: &ChannelSolve) -> Lo
 pub(super) fn log_ratio_sd(radiance: &[[f32; 3]], channels: &[LogRadianceSpread]) -> Vec<Vec<Option<f32>>> {
     let slots = radiance.len();
     let weights = psc_base::color::REC709_WEIGHTS;
-    let luminance: Vec<f64> =
-        radiance.iter().map(|r| (0..3).map(|c| f64::from(weights[c]) * f64::from(r[c])).sum()).collect();
+    let luminance: Vec<f64> = radiance.iter().map(|r| f64::from(psc_base::color::luminance(*r))).collect();
     let mut out = vec![vec![Some(0.0f32); slots]; slots];
     for i in 0..slots {
         for j in (0..slots).filter(|&j| j != i) {
