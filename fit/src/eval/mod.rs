@@ -226,7 +226,7 @@ pub struct Evaluation {
     /// Parts no input view shows (the baselines give them the median of all labelled pixels).
     pub unseen_parts: Vec<String>,
     /// Per (geometry, view kind) whose images show an unseen part: the floor those parts put
-    /// under the fitted / pixel-median ratios ([`floor`]).
+    /// under the fitted / pixel-median ratios (the `floor` module).
     pub unseen_floors: Vec<UnseenFloor>,
     /// The lights every method but the oracle renders under (scene order), and the true ones.
     pub fitted_lights: Vec<[f32; 3]>,
