@@ -174,6 +174,18 @@ impl Adam {
         Adam { lr, m: vec![0.0; n], v: vec![0.0; n], t: 0 }
     }
 
+    /// Multiplies every variable's learning rate by `factor`, keeping the moments.
+    pub fn scale_learning_rates(&mut self, factor: f32) {
+        self.lr.iter_mut().for_each(|lr| *lr *= factor);
+    }
+
+    /// Forgets the direction of travel (the first moment) but keeps each variable's gradient
+    /// scale (the second moment): after a jump the old direction is stale, but a fresh start
+    /// would make the next step a full learning rate in every variable at once.
+    pub fn forget_momentum(&mut self) {
+        self.m.iter_mut().for_each(|m| *m = 0.0);
+    }
+
     /// One descent step of `x` along `grad`.
     pub fn step(&mut self, x: &mut [f32], grad: &[f64]) {
         self.t += 1;
@@ -201,5 +213,43 @@ mod tests {
             adam.step(&mut x, &g);
         }
         assert!((x[0] - 1.0).abs() < 1e-2 && (x[1] + 0.5).abs() < 1e-2, "{x:?}");
+    }
+
+    /// The first step after `n` steps of the same gradients, for an Adam changed by `change`.
+    fn step_after(n: usize, change: impl Fn(&mut Adam)) -> Vec<f32> {
+        let mut adam = Adam::new(vec![0.1, 0.1]);
+        let mut x = vec![0.0f32; 2];
+        for _ in 0..n {
+            adam.step(&mut x, &[1.0, -4.0]);
+        }
+        change(&mut adam);
+        let before = x.clone();
+        adam.step(&mut x, &[-1.0, 4.0]);
+        x.iter().zip(&before).map(|(a, b)| a - b).collect()
+    }
+
+    #[test]
+    fn scaled_learning_rates_scale_the_steps() {
+        let full = step_after(20, |_| {});
+        let quarter = step_after(20, |a| a.scale_learning_rates(0.25));
+        for (f, q) in full.iter().zip(&quarter) {
+            assert!((q - 0.25 * f).abs() < 1e-3 * f.abs() + 1e-6, "{full:?} {quarter:?}");
+        }
+    }
+
+    #[test]
+    fn forgetting_the_momentum_keeps_the_gradient_scale() {
+        // Twenty steps one way, then the gradient turns: with the momentum the first step still
+        // goes the old way; forgotten, it goes the new way, but by a tenth of the rate (the
+        // kept second moment), not by a full step as a fresh Adam would.
+        let kept = step_after(20, |_| {});
+        let forgotten = step_after(20, Adam::forget_momentum);
+        let fresh = step_after(20, |a| *a = Adam::new(vec![0.1, 0.1]));
+        assert!(kept[0] < 0.0 && kept[1] > 0.0, "{kept:?}");
+        assert!(forgotten[0] > 0.0 && forgotten[1] < 0.0, "{forgotten:?}");
+        for i in 0..2 {
+            assert!((fresh[i].abs() - 0.1).abs() < 1e-4, "{fresh:?}");
+            assert!(forgotten[i].abs() < 0.2 * fresh[i].abs(), "{forgotten:?} {fresh:?}");
+        }
     }
 }
