@@ -11,25 +11,14 @@
 
 mod flat_view;
 
-use flat_view::flat_view;
+use flat_view::photo_of;
 use psc_fit::features::{FeatureConfig, Scratch};
-use psc_fit::layer::{MaterialState, PartView, Sampling, Workspace};
+use psc_fit::layer::MaterialState;
 use psc_fit::loss::{LossWeights, PartLoss};
 use psc_fit::optim::Free;
 use psc_fit::part_fit::{fit_part, FitSettings, PartFit, Problem};
 use psc_fit::uvmap::UvTransform;
 use psc_runtime::library::{default_library_root, Library, Material};
-
-fn photo_of(material: &Material, uv: UvTransform, size: usize) -> PartView {
-    let mut view = flat_view(size, 1.0 / size as f32);
-    let state =
-        MaterialState { params: material.graph.info.default_params(), uv, albedo_scale: [1.0; 3], roughness: 0.5 };
-    let mut ws = Workspace::default();
-    view.render(material, &state, Sampling::default(), &mut ws).unwrap();
-    view.target = ws.image.clone();
-    view.target_linear = ws.linear.clone();
-    view
-}
 
 /// The photo's state moved off: every continuous parameter a fifth of its range towards the
 /// far end, the UV rotated, scaled and shifted, the colour scaled unevenly.

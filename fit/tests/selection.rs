@@ -11,16 +11,16 @@
 
 mod flat_view;
 
-use flat_view::flat_view;
+use flat_view::{flat_view, photo_of};
 use psc_base::SplitMix64;
 use psc_fit::features::{FeatureConfig, Scratch};
-use psc_fit::layer::{MaterialState, PartView, Sampling, Workspace};
+use psc_fit::layer::{MaterialState, Sampling, Workspace};
 use psc_fit::loss::{LossWeights, PartLoss};
 use psc_fit::optim::Free;
 use psc_fit::part_fit::{fit_contest, FitSettings, Problem};
 use psc_fit::select::{select, SelectSettings};
 use psc_fit::uvmap::UvTransform;
-use psc_runtime::library::{default_library_root, Library, Material};
+use psc_runtime::library::{default_library_root, Library};
 
 const PANEL: [&str; 8] = [
     "oak_planks",
@@ -32,18 +32,6 @@ const PANEL: [&str; 8] = [
     "quartz_surface",
     "subway_tiles",
 ];
-
-/// A `size`² flat crop whose photo is `material` at its defaults, seen through `uv`.
-fn photo_of(material: &Material, uv: UvTransform, size: usize) -> PartView {
-    let mut view = flat_view(size, 1.0 / size as f32);
-    let state =
-        MaterialState { params: material.graph.info.default_params(), uv, albedo_scale: [1.0; 3], roughness: 0.5 };
-    let mut ws = Workspace::default();
-    view.render(material, &state, Sampling::default(), &mut ws).unwrap();
-    view.target = ws.image.clone();
-    view.target_linear = ws.linear.clone();
-    view
-}
 
 #[test]
 fn the_vote_proposes_and_the_contest_chooses_the_graph_that_made_the_photo() {

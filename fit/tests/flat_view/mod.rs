@@ -2,8 +2,10 @@
 //! through the layer without a scene (supersampling, selection).
 
 use glam::Vec3;
-use psc_fit::layer::{FitPixel, PartView};
+use psc_fit::layer::{FitPixel, MaterialState, PartView, Sampling, Workspace};
 use psc_fit::shading::{LightSample, BINS};
+use psc_fit::uvmap::UvTransform;
+use psc_runtime::library::Material;
 
 /// A `size`×`size` crop, `step` uv units per pixel, under a uniform light of 0.4 per bin; the
 /// target is a flat grey (callers that need a photo set `target` and `target_linear`).
@@ -34,4 +36,17 @@ pub fn flat_view(size: usize, step: f32) -> PartView {
         noise_scale: 1.0,
         faces: Vec::new(),
     }
+}
+
+/// A `size`² flat crop whose photo is `material` at its defaults, seen through `uv`.
+#[allow(dead_code)] // not every test that shares this module renders a photo
+pub fn photo_of(material: &Material, uv: UvTransform, size: usize) -> PartView {
+    let mut view = flat_view(size, 1.0 / size as f32);
+    let state =
+        MaterialState { params: material.graph.info.default_params(), uv, albedo_scale: [1.0; 3], roughness: 0.5 };
+    let mut ws = Workspace::default();
+    view.render(material, &state, Sampling::default(), &mut ws).unwrap();
+    view.target = ws.image.clone();
+    view.target_linear = ws.linear.clone();
+    view
 }
