@@ -106,6 +106,18 @@ impl<'a> Problem<'a> {
     pub fn on_one_view(material: &'a Material, view: &'a PartView, loss: &'a PartLoss) -> Problem<'a> {
         Problem { material, fit_view: view, fit_loss: loss, search_view: view, search_loss: loss }
     }
+
+    /// The fit loss of `state`, rendered on the fit view.
+    fn loss_of(
+        &self,
+        state: &MaterialState,
+        settings: &FitSettings,
+        ws: &mut Workspace,
+        scratch: &mut Scratch,
+    ) -> Result<f32, FitError> {
+        self.fit_view.render(self.material, state, settings.sampling, ws)?;
+        Ok(self.fit_loss.value(&ws.image, scratch).total)
+    }
 }
 
 /// One start of a fit: its global UV search (when asked) and its short run.
@@ -383,14 +395,10 @@ impl Run {
         if found.uv == self.state.uv {
             return Ok(n);
         }
-        let mut fit_loss = |state: &MaterialState| -> Result<f32, FitError> {
-            problem.fit_view.render(problem.material, state, settings.sampling, ws)?;
-            Ok(problem.fit_loss.value(&ws.image, scratch).total)
-        };
-        let mut best = (fit_loss(&self.state)?, None);
+        let mut best = (problem.loss_of(&self.state, settings, ws, scratch)?, None);
         for albedo_scale in [self.state.albedo_scale, found.albedo_scale] {
             let trial = MaterialState { uv: found.uv, albedo_scale, ..self.state.clone() };
-            let loss = fit_loss(&trial)?;
+            let loss = problem.loss_of(&trial, settings, ws, scratch)?;
             if loss < best.0 {
                 best = (loss, Some(trial));
             }
@@ -412,11 +420,7 @@ impl Run {
         scratch: &mut Scratch,
     ) -> Result<(), FitError> {
         let info = &problem.material.graph.info;
-        let mut loss_of = |state: &MaterialState, ws: &mut Workspace| -> Result<f32, FitError> {
-            problem.fit_view.render(problem.material, state, settings.sampling, ws)?;
-            Ok(problem.fit_loss.value(&ws.image, scratch).total)
-        };
-        let mut current = loss_of(&self.state, ws)?;
+        let mut current = problem.loss_of(&self.state, settings, ws, scratch)?;
         let mut changed = false;
         for p in &info.params {
             let ParamKind::Discrete { min, max } = p.kind else { continue };
@@ -427,7 +431,7 @@ impl Run {
                 }
                 let mut trial = self.state.clone();
                 trial.params[p.slot] = x;
-                let l = loss_of(&trial, ws)?;
+                let l = problem.loss_of(&trial, settings, ws, scratch)?;
                 if l < current {
                     (current, self.state, changed) = (l, trial, true);
                 }
