@@ -14,6 +14,7 @@ use psc_render::{image_io, RenderOptions, Renderer};
 use psc_runtime::bake::{bake, write_maps};
 use psc_runtime::library::Library;
 use psc_runtime::params::ParamSpace;
+use rayon::prelude::*;
 use serde_json::{json, Value};
 
 use crate::error::FitError;
@@ -156,9 +157,12 @@ pub fn write_into(
     write_json(&dir.join("materials.json"), &json!({ "parts": assignment }))?;
     write_json(&dir.join("lights.json"), &lights_json(result, scene))?;
     if options.texture_size > 0 {
-        for p in &result.parts {
-            bake_part(library, p, &parts_dir.join(file_stem(&p.name)), options.texture_size)?;
-        }
+        // In parallel: encoding a part's PNG and EXR maps runs on one thread.
+        result
+            .parts
+            .par_iter()
+            .with_max_len(1)
+            .try_for_each(|p| bake_part(library, p, &parts_dir.join(file_stem(&p.name)), options.texture_size))?;
     }
     let mut renders = Vec::new();
     if options.render_spp > 0 {

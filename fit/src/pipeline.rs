@@ -10,6 +10,7 @@ use std::time::Instant;
 use psc_render::scene::{LightRadiances, Scene};
 use psc_render::Renderer;
 use psc_runtime::library::Library;
+use rayon::prelude::*;
 
 use crate::align::{align_view, AlignedPart};
 use crate::error::FitError;
@@ -304,9 +305,7 @@ fn run(
     // Before the first light solve every view is at exposure 1; a resumed fit keeps the
     // exposures solved with the lights it starts from.
     let exposure = previous.map_or_else(|| vec![[1.0; 3]; views.len()], |p| p.exposures(views.len()));
-    for part in (0..n_parts).filter(|_| fit_parts) {
-        let name = &scene.mesh.part_names[part];
-        let before = previous.map(|p| &p.parts[part]);
+    if fit_parts {
         let inputs = PartInputs {
             scene,
             library,
@@ -316,10 +315,27 @@ fn run(
             exposure: &exposure,
             render_noise: &render_noise,
         };
-        let result = fit_one_part(&inputs, &aligned, &shading, part as u32, before, options)?;
-        progress.note(&summary(name, &result));
-        parts.push(result);
-        progress.advance(1);
+        // Parts in parallel as well as within: a small part's batches leave cores idle. A
+        // part's fit reads nothing another part writes, so the results are the same in any
+        // order and for any thread count. Each free thread takes the next part in order of
+        // size, largest first, so that the largest part does not start last and run alone.
+        let mut by_size: Vec<usize> = (0..n_parts).collect();
+        by_size.sort_by_key(|&part| std::cmp::Reverse(usable_pixels(&aligned, part as u32)));
+        let mut fitted: Vec<(usize, Result<PartResult, FitError>)> = by_size
+            .into_iter()
+            .par_bridge()
+            .map(|part| {
+                let before = previous.map(|p| &p.parts[part]);
+                let result = fit_one_part(&inputs, &aligned, &shading, part as u32, before, options);
+                if let Ok(r) = &result {
+                    progress.note(&summary(&scene.mesh.part_names[part], r));
+                }
+                progress.advance(1);
+                (part, result)
+            })
+            .collect();
+        fitted.sort_by_key(|(part, _)| *part);
+        parts = fitted.into_iter().map(|(_, r)| r).collect::<Result<Vec<_>, FitError>>()?;
     }
     lap("fit parts", &mut timings);
 
@@ -344,9 +360,11 @@ fn run(
     };
     {
         let light = RoundLighting { renderer: &renderer, shading: &shading, exposure: &result.exposure };
-        for part in result.parts.iter_mut() {
-            refit::match_whole_part(&inputs, &light, part)?;
-        }
+        result
+            .parts
+            .par_iter_mut()
+            .with_max_len(1)
+            .try_for_each(|part| refit::match_whole_part(&inputs, &light, part).map(drop))?;
     }
     lap("match part means", &mut result.timings);
     // Whether the last thing done to the materials is a light solve applied without a re-fit.
@@ -379,11 +397,12 @@ fn run(
             grids.iter().zip(&views).map(|(g, o)| ShadingGrid::new(g, &result.radiance, o.camera.position)).collect();
         progress.stage("re-fit albedo scale and roughness", n_parts as u64);
         let light = RoundLighting { renderer: &renderer, shading: &shading, exposure: &result.exposure };
-        for part in result.parts.iter_mut() {
+        result.parts.par_iter_mut().with_max_len(1).try_for_each(|part| {
             refit::refit_appearance(&inputs, &light, part)?;
             refit::match_whole_part(&inputs, &light, part)?;
             progress.advance(1);
-        }
+            Ok::<(), FitError>(())
+        })?;
         lap(&format!("re-fit round {}", round + 1), &mut result.timings);
     }
     // Each re-fit ends on the whole-part mean match, made in the shading layer (light grids),
@@ -400,6 +419,11 @@ fn run(
         lap("final calibration", &mut result.timings);
     }
     Ok(result)
+}
+
+/// A part's usable photo pixels over every view: how long its fit will take, roughly.
+fn usable_pixels(aligned: &[Vec<AlignedPart>], part: u32) -> usize {
+    aligned.iter().flatten().filter(|a| a.part == part).map(|a| a.usable.len()).sum()
 }
 
 /// One global light solve under the renderer's current materials, applied to `result`: the
