@@ -294,49 +294,25 @@ fn run(
         grids.iter().zip(&views).map(|(g, o)| ShadingGrid::new(g, &radiance, o.camera.position)).collect();
     lap("light grids", &mut timings);
 
-    let mut parts = Vec::with_capacity(n_parts);
-    let fit_parts = !matches!(mode, Mode::RefitOnly(_));
-    if let Mode::RefitOnly(p) = mode {
-        parts = p.parts.clone();
-    }
-    if fit_parts {
-        progress.stage("fit parts", n_parts as u64);
-    }
     // Before the first light solve every view is at exposure 1; a resumed fit keeps the
     // exposures solved with the lights it starts from.
     let exposure = previous.map_or_else(|| vec![[1.0; 3]; views.len()], |p| p.exposures(views.len()));
-    if fit_parts {
-        let inputs = PartInputs {
-            scene,
-            library,
-            homogeneous: &homogeneous,
-            renderer: &renderer,
-            views: &views,
-            exposure: &exposure,
-            render_noise: &render_noise,
-        };
-        // Parts in parallel as well as within: a small part's batches leave cores idle. A
-        // part's fit reads nothing another part writes, so the results are the same in any
-        // order and for any thread count. Each free thread takes the next part in order of
-        // size, largest first, so that the largest part does not start last and run alone.
-        let mut by_size: Vec<usize> = (0..n_parts).collect();
-        by_size.sort_by_key(|&part| std::cmp::Reverse(usable_pixels(&aligned, part as u32)));
-        let mut fitted: Vec<(usize, Result<PartResult, FitError>)> = by_size
-            .into_iter()
-            .par_bridge()
-            .map(|part| {
-                let before = previous.map(|p| &p.parts[part]);
-                let result = fit_one_part(&inputs, &aligned, &shading, part as u32, before, options);
-                if let Ok(r) = &result {
-                    progress.note(&summary(&scene.mesh.part_names[part], r));
-                }
-                progress.advance(1);
-                (part, result)
-            })
-            .collect();
-        fitted.sort_by_key(|(part, _)| *part);
-        parts = fitted.into_iter().map(|(_, r)| r).collect::<Result<Vec<_>, FitError>>()?;
-    }
+    let parts = match mode {
+        Mode::RefitOnly(p) => p.parts.clone(),
+        Mode::Fit | Mode::Resume(_) => {
+            progress.stage("fit parts", n_parts as u64);
+            let inputs = PartInputs {
+                scene,
+                library,
+                homogeneous: &homogeneous,
+                renderer: &renderer,
+                views: &views,
+                exposure: &exposure,
+                render_noise: &render_noise,
+            };
+            fit_every_part(&inputs, &aligned, &shading, previous, options, progress)?
+        }
+    };
     lap("fit parts", &mut timings);
 
     let mut result = FitResult {
@@ -419,6 +395,39 @@ fn run(
         lap("final calibration", &mut result.timings);
     }
     Ok(result)
+}
+
+/// Every part of the scene fitted, in part order. Parts run in parallel as well as within: a
+/// small part's batches leave cores idle. A part's fit reads nothing another part writes, so
+/// the results are the same in any order and for any thread count. Each free thread takes the
+/// next part in order of size, largest first, so that the largest part does not start last
+/// and run alone. Every part runs; the first error in part order is returned.
+fn fit_every_part(
+    inputs: &PartInputs,
+    aligned: &[Vec<AlignedPart>],
+    shading: &[ShadingGrid],
+    previous: Option<&PreviousFit>,
+    options: &FitOptions,
+    progress: &dyn Progress,
+) -> Result<Vec<PartResult>, FitError> {
+    let n_parts = inputs.scene.mesh.part_names.len();
+    let mut by_size: Vec<usize> = (0..n_parts).collect();
+    by_size.sort_by_key(|&part| std::cmp::Reverse(usable_pixels(aligned, part as u32)));
+    let mut fitted: Vec<(usize, Result<PartResult, FitError>)> = by_size
+        .into_iter()
+        .par_bridge()
+        .map(|part| {
+            let before = previous.map(|p| &p.parts[part]);
+            let result = fit_one_part(inputs, aligned, shading, part as u32, before, options);
+            if let Ok(r) = &result {
+                progress.note(&summary(&inputs.scene.mesh.part_names[part], r));
+            }
+            progress.advance(1);
+            (part, result)
+        })
+        .collect();
+    fitted.sort_by_key(|(part, _)| *part);
+    fitted.into_iter().map(|(_, r)| r).collect()
 }
 
 /// A part's usable photo pixels over every view: how long its fit will take, roughly.
