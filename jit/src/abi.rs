@@ -53,6 +53,9 @@ unsafe impl Send for NativeKernel {}
 unsafe impl Sync for NativeKernel {}
 
 impl NativeKernel {
+    /// The most points [`NativeKernel::call_points`] evaluates on the stack in one call.
+    pub(crate) const MAX_POINTS: usize = 16;
+
     /// Finalizes `module` and resolves the kernel's entry point.
     pub(crate) fn finalize(
         mut module: JITModule,
@@ -127,42 +130,49 @@ impl NativeKernel {
         Ok(())
     }
 
-    /// Evaluates the single point `(u, v)` of a program without seeds, with every buffer on
-    /// the stack: the renderer's per-hit path, where the general call's bookkeeping would cost
-    /// a noticeable share of a small kernel. Falls back to [`NativeKernel::call`] past the
-    /// stack buffers' sizes.
-    pub(crate) fn call_point(&self, params: &[f32], u: f32, v: f32, out: &mut [f32]) -> Result<(), JitError> {
-        const MAX_BLOCK: usize = 16;
+    /// Evaluates the points `(u[k], v[k])` (at most [`NativeKernel::MAX_POINTS`]) of a program
+    /// without seeds into `out` (point-major: `out[k * num_outputs + o]`), with every buffer on
+    /// the stack: the renderer's per-hit path (one hit, or the few hits of a packet that share
+    /// a material), where the general call's bookkeeping would cost a noticeable share of a
+    /// small kernel. Each point has a lane of its own, so a point's values do not depend on the
+    /// others. Falls back to [`NativeKernel::call`] past the stack buffers' sizes.
+    pub(crate) fn call_points(&self, params: &[f32], u: &[f32], v: &[f32], out: &mut [f32]) -> Result<(), JitError> {
+        const MAX_BLOCK: usize = NativeKernel::MAX_POINTS;
         const MAX_PARAMS: usize = 64;
         const MAX_OUTPUTS: usize = 16;
-        let fits = self.block <= MAX_BLOCK && self.num_params <= MAX_PARAMS && self.num_outputs <= MAX_OUTPUTS;
-        if !fits || self.num_inputs != 2 {
-            let mut columns: Vec<[f32; 1]> = vec![[0.0]; out.len()];
-            let mut outputs: Vec<&mut [f32]> = columns.iter_mut().map(|c| &mut c[..]).collect();
-            self.call(params, &[u], &[v], &[], &mut outputs)?;
-            out.iter_mut().zip(&columns).for_each(|(o, c)| *o = c[0]);
-            return Ok(());
+        let (n, n_out) = (u.len(), self.num_outputs);
+        if n == 0 || v.len() != n || n > MAX_BLOCK || params.len() < self.num_params || out.len() != n * n_out {
+            return Err(JitError::Shape("point count or length mismatch at the native boundary".into()));
         }
-        if params.len() < self.num_params || out.len() != self.num_outputs {
-            return Err(JitError::Shape("column count or length mismatch at the native boundary".into()));
+        let padded = n.div_ceil(self.block) * self.block;
+        let fits = padded <= MAX_BLOCK && self.num_params <= MAX_PARAMS && n_out <= MAX_OUTPUTS;
+        if !fits || self.num_inputs != 2 {
+            let mut columns: Vec<Vec<f32>> = vec![vec![0.0; n]; n_out];
+            let mut outputs: Vec<&mut [f32]> = columns.iter_mut().map(|c| &mut c[..]).collect();
+            self.call(params, u, v, &[], &mut outputs)?;
+            for (o, column) in columns.iter().enumerate() {
+                column.iter().enumerate().for_each(|(k, &x)| out[k * n_out + o] = x);
+            }
+            return Ok(());
         }
         let mut lanes = [Lanes([0.0; 4]); MAX_PARAMS];
         for (lane, &p) in lanes.iter_mut().zip(&params[..self.num_params]) {
             *lane = Lanes::splat(p);
         }
-        // Every lane of the padded block evaluates the same point.
-        let (u_col, v_col) = ([u; MAX_BLOCK], [v; MAX_BLOCK]);
+        // The lanes past the last point evaluate the last point again (a value they are sure to
+        // handle), as the batch call's tail does.
+        let (mut u_col, mut v_col) = ([u[n - 1]; MAX_BLOCK], [v[n - 1]; MAX_BLOCK]);
+        u_col[..n].copy_from_slice(u);
+        v_col[..n].copy_from_slice(v);
         let mut out_cols = [[0.0f32; MAX_BLOCK]; MAX_OUTPUTS];
         let in_ptrs = [u_col.as_ptr(), v_col.as_ptr()];
         let out_ptrs: [*mut f32; MAX_OUTPUTS] = std::array::from_fn(|k| out_cols[k].as_mut_ptr());
-        // SAFETY: two input columns and `num_outputs` output columns of MAX_BLOCK ≥ `block`
-        // floats each, all distinct stack arrays that outlive the call; `lanes` holds
-        // `num_params` splatted parameters.
-        unsafe {
-            (self.entry)(lanes.as_ptr(), self.constants.as_ptr(), in_ptrs.as_ptr(), out_ptrs.as_ptr(), self.block)
-        };
-        for (o, col) in out.iter_mut().zip(&out_cols) {
-            *o = col[0];
+        // SAFETY: two input columns and `num_outputs` output columns of MAX_BLOCK ≥ `padded`
+        // floats each (`padded` a multiple of `block`), all distinct stack arrays that outlive
+        // the call; `lanes` holds `num_params` splatted parameters.
+        unsafe { (self.entry)(lanes.as_ptr(), self.constants.as_ptr(), in_ptrs.as_ptr(), out_ptrs.as_ptr(), padded) };
+        for (o, col) in out_cols[..n_out].iter().enumerate() {
+            col[..n].iter().enumerate().for_each(|(k, &x)| out[k * n_out + o] = x);
         }
         Ok(())
     }

@@ -195,9 +195,20 @@ impl CompiledKernel {
     /// without allocating: the per-hit path of the renderer. Same results as [`Self::run`] on
     /// a one-point batch.
     pub fn run_point(&self, params: &[f32], u: f32, v: f32, out: &mut [f32]) -> Result<(), JitError> {
+        self.run_points(params, &[u], &[v], out)
+    }
+
+    /// The most points [`Self::run_points`] takes.
+    pub const MAX_POINTS: usize = abi::NativeKernel::MAX_POINTS;
+
+    /// Evaluates up to [`Self::MAX_POINTS`] points of a forward program (no seeds) into `out`,
+    /// point-major (`out[k * num_outputs + o]`: output `o` at point `k`), without allocating:
+    /// the renderer's path for the hits of a packet that share a material. Bit for bit the
+    /// values [`Self::run`] gives for the same points.
+    pub fn run_points(&self, params: &[f32], u: &[f32], v: &[f32], out: &mut [f32]) -> Result<(), JitError> {
         if self.num_seeds != 0 {
             return Err(JitError::Shape(format!(
-                "run_point needs a program without seeds, this one has {}",
+                "run_points needs a program without seeds, this one has {}",
                 self.num_seeds
             )));
         }
@@ -208,14 +219,21 @@ impl CompiledKernel {
                 self.num_params
             )));
         }
-        if out.len() != self.output_names.len() {
+        let (n, n_out) = (u.len(), self.output_names.len());
+        if n == 0 || n > Self::MAX_POINTS || v.len() != n {
             return Err(JitError::Shape(format!(
-                "{} output values given, the program has {}",
-                out.len(),
-                self.output_names.len()
+                "run_points takes 1 to {} points with as many v as u, got {n} u and {} v",
+                Self::MAX_POINTS,
+                v.len()
             )));
         }
-        self.native.call_point(params, u, v, out)
+        if out.len() != n * n_out {
+            return Err(JitError::Shape(format!(
+                "{} output values given for {n} points of {n_out} outputs",
+                out.len()
+            )));
+        }
+        self.native.call_points(params, u, v, out)
     }
 
     pub fn num_params(&self) -> usize {

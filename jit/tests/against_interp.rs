@@ -13,7 +13,7 @@ use common::{random_program, run_jit, same, same_bits, OpSet, Rng};
 use proptest::prelude::*;
 use psc_compiler::interp;
 use psc_compiler::ir::{Builder, NodeId, Output, Program};
-use psc_jit::{compile_with, mirror_eval_point, OptLevel, Options};
+use psc_jit::{compile_with, mirror_eval_point, CompiledKernel, OptLevel, Options};
 
 fn points(
     seed: u64,
@@ -87,6 +87,30 @@ proptest! {
             }
         }
         prop_assert!(k.run_point(&p, 0.5, 0.5, &mut vec![0.0; k.num_outputs() + 1]).is_err());
+    }
+
+    /// A packet of points, each in a lane of its own (the padding lanes repeat the last point):
+    /// every point's values are the mirror's, whatever the points beside it.
+    #[test]
+    fn run_points_matches_the_mirror(spec in spec(), consts in consts(), outs in prop::collection::vec(any::<u32>(), 0..4),
+                                     n in 1usize..=CompiledKernel::MAX_POINTS, pts in any::<u64>(), opt in any::<u8>()) {
+        let prog = random_program(&spec, &consts, 0, &outs, OpSet::All);
+        let k = compile_with(&prog, &options(opt)).unwrap();
+        let (u, v, p, _) = points(pts, n, prog.num_params, 0, true);
+        let n_out = k.num_outputs();
+        let mut out = vec![0.0f32; n * n_out];
+        k.run_points(&p, &u, &v, &mut out).unwrap();
+        for i in 0..n {
+            let want = mirror_eval_point(&prog, k.uses_fma(), &p, u[i], v[i], &[]);
+            for (o, w) in want.iter().enumerate() {
+                prop_assert!(same_bits(out[i * n_out + o], *w),
+                    "point {i} of {n} output {o}: run_points {:e} mirror {:e}", out[i * n_out + o], w);
+            }
+        }
+        prop_assert!(k.run_points(&p, &u, &v, &mut vec![0.0; n * n_out + 1]).is_err());
+        let many = vec![0.5f32; CompiledKernel::MAX_POINTS + 1];
+        prop_assert!(k.run_points(&p, &many, &many, &mut vec![0.0; many.len() * n_out]).is_err());
+        prop_assert!(k.run_points(&p, &[], &[], &mut []).is_err());
     }
 
     #[test]
@@ -220,7 +244,8 @@ fn shared_sin_cos_match_the_mirror() {
     }
 }
 
-/// More outputs than `run_point`'s stack buffers hold: it falls back to the general call.
+/// More outputs than `run_point`'s and `run_points`' stack buffers hold: they fall back to the
+/// general call.
 #[test]
 fn run_point_with_many_outputs_matches_run() {
     let mut b = Builder::new();
@@ -241,6 +266,16 @@ fn run_point_with_many_outputs_matches_run() {
     let batch = run_jit(&k, &p, &[0.3], &[0.7], &[]);
     for (o, col) in batch.iter().enumerate() {
         assert!(same_bits(point[o], col[0]), "output {o}: {} vs {}", point[o], col[0]);
+    }
+    let (us, vs) = ([0.3, -2.0, 0.9, 7.5, 0.1], [0.7, 0.25, -0.4, 3.0, 0.6]);
+    let mut packet = vec![0.0f32; us.len() * k.num_outputs()];
+    k.run_points(&p, &us, &vs, &mut packet).unwrap();
+    let batch = run_jit(&k, &p, &us, &vs, &[]);
+    for (o, col) in batch.iter().enumerate() {
+        for (i, &want) in col.iter().enumerate() {
+            let got = packet[i * k.num_outputs() + o];
+            assert!(same_bits(got, want), "point {i} output {o}: {got} vs {want}");
+        }
     }
 }
 

@@ -6,6 +6,10 @@
 //! at unit emission; an image is the slot images weighted by the light radiances, which gives
 //! per-light renders for free and keeps them consistent with the combined one.
 //!
+//! The render loop traces the paths of neighbouring pixels in lockstep (a path is cut at the
+//! material lookup, `path.rs`), so that the hits of a packet on one part are shaded in one batch
+//! through the material's SIMD kernel rather than one lane at a time.
+//!
 //! Determinism: sample s of pixel i draws from `Rng::new(seed, i, s)` and pixels are reduced in a
 //! fixed order, so the result does not depend on the thread count or scheduling.
 
@@ -17,18 +21,25 @@ use glam::Vec3;
 use psc_base::progress::{self, NoProgress, Progress};
 use rayon::prelude::*;
 
-use crate::brdf::Karis;
 use crate::camera::Camera;
 use crate::emitters::{AreaLights, Distribution1D, EnvMap};
 use crate::geometry::{SceneGeometry, Traced};
-use crate::material::MaterialBinding;
+use crate::material::{MaterialBinding, SurfaceSample};
 use crate::rng::Rng;
 use crate::scene::{LightRadiances, Scene};
 use crate::RenderError;
 
 mod options;
+mod path;
 
 pub use options::{slot_file_names, PathConfig, RenderOptions, RenderOutput};
+use path::{PathVertex, SurfaceStop};
+
+/// Paths traced together by the render loop: neighbouring pixels of a row at one sample
+/// index. Past the first bounce paths scatter over the parts, so a packet must be several SIMD
+/// widths wide for its hits on one part to fill a kernel's 4 lanes; 16 is also the most points
+/// the JIT's stack-only entry takes at once.
+const PACKET: usize = 16;
 
 /// Everything needed to trace a scene with given materials and light radiances.
 ///
@@ -242,131 +253,77 @@ impl Renderer {
         self.li_inline(o, d, cfg, st)
     }
 
-    /// [`Renderer::li`], inlined into the render loop (so that it is compiled for the CPU
-    /// features the loop is compiled for).
+    /// [`Renderer::li`], inlined where it is called (so that it is compiled for the CPU
+    /// features of its caller).
     #[inline(always)]
-    fn li_inline(&self, mut o: Vec3, mut d: Vec3, cfg: &PathConfig, st: &mut PathState) {
+    fn li_inline(&self, o: Vec3, d: Vec3, cfg: &PathConfig, st: &mut PathState) {
         let sel = self.selection(cfg.per_light);
-        let n_lights = self.lights.len();
-        let mut beta = Vec3::ONE;
-        let mut prev_pdf = 0.0f32;
-        let mut depth = 0u32;
-        loop {
-            st.rays += 1;
-            let hit = match self.geometry.trace(o, d, f32::INFINITY) {
-                Traced::Miss => {
-                    if let Some(env) = &self.env {
-                        let w = if prev_pdf > 0.0 {
-                            power_heuristic(prev_pdf, sel.pmf(n_lights) * env.pdf(d))
-                        } else {
-                            1.0
-                        };
-                        st.out[n_lights] += beta * env.eval(d) * w;
-                    }
-                    return;
-                }
-                Traced::Emitter { light, n, t } => {
-                    let cos_l = -n.dot(d);
-                    if cos_l > 0.0 && !(cfg.skip_direct_emitters && depth == 0) {
-                        let k = light as usize;
-                        let w = if prev_pdf > 0.0 {
-                            let pdf_l = sel.pmf(k) / self.lights.areas[k] * t * t / cos_l;
-                            power_heuristic(prev_pdf, pdf_l)
-                        } else {
-                            1.0
-                        };
-                        st.out[k] += beta * w;
-                    }
-                    return; // emitters do not reflect
-                }
-                Traced::Surface(h) => h,
-            };
-            if depth + 1 >= cfg.max_depth {
+        let mut v = PathVertex::start(o, d);
+        while let Some(stop) = self.advance_to_surface(&v, sel, cfg, st) {
+            let s = self.materials[stop.hit.part as usize].eval(stop.hit.uv);
+            if !self.shade_and_continue(&mut v, &stop, s, cfg, st) {
                 return;
-            }
-            let wo = -d;
-            let binding = &self.materials[hit.part as usize];
-            // The material's texels load while the shadow ray is traced: NEE is sampled and its
-            // visibility tested before shading, with only the geometric tests; the shading-frame
-            // test and the contribution wait for the BRDF (same random numbers, same estimate).
-            binding.prefetch(hit.uv);
-            let ng = if hit.ng.dot(wo) >= 0.0 { hit.ng } else { -hit.ng };
-            let origin = self.geometry.offset(hit.p, ng);
-
-            // Next-event estimation: (slot, wi, radiance, light pdf) of an unoccluded sample.
-            let mut nee: Option<(usize, Vec3, Vec3, f32)> = None;
-            if sel.total > 0.0 {
-                let (slot, u_tri) = sel.sample(st.rng.next_f32());
-                let p_sel = sel.pmf(slot);
-                let u = st.rng.next_2d();
-                if slot < n_lights {
-                    if let Some(lp) = self.lights.sample(slot, u_tri, u) {
-                        let to = lp.p - origin;
-                        let dist2 = to.length_squared();
-                        let dist = dist2.sqrt();
-                        let wi = to / dist;
-                        let cos_l = -lp.n.dot(wi);
-                        if cos_l > 0.0 && wi.dot(ng) > 0.0 {
-                            st.rays += 1;
-                            if !self.geometry.occluded(origin, wi, dist * (1.0 - 1e-4) - self.geometry.eps) {
-                                nee = Some((slot, wi, Vec3::ONE, p_sel * lp.pdf_area * dist2 / cos_l));
-                            }
-                        }
-                    }
-                } else if let Some(env) = &self.env {
-                    if let Some((wi, le, pdf)) = env.sample(u) {
-                        if wi.dot(ng) > 0.0 && pdf > 0.0 {
-                            st.rays += 1;
-                            if !self.geometry.occluded(origin, wi, f32::INFINITY) {
-                                nee = Some((slot, wi, le, p_sel * pdf));
-                            }
-                        }
-                    }
-                }
-            }
-
-            let s = binding.eval(hit.uv);
-            let sf = self.geometry.shading_frame(&hit, wo, s.normal);
-            let mut brdf = Karis::new(Vec3::from(s.albedo), s.roughness);
-            if cfg.diffuse_only {
-                brdf = brdf.diffuse_only();
-            }
-            let wo_l = sf.frame.to_local(wo);
-            if wo_l.z <= 0.0 {
-                return;
-            }
-            let brdf = brdf.at(wo_l);
-            if let Some((slot, wi, le, pdf_l)) = nee {
-                let wi_l = sf.frame.to_local(wi);
-                if wi_l.z > 0.0 {
-                    let (f, pdf_b) = brdf.eval_pdf(wi_l);
-                    let w = power_heuristic(pdf_l, pdf_b);
-                    st.out[slot] += beta * f * le * (wi_l.z * w / pdf_l);
-                }
-            }
-
-            // Continue the path.
-            let u_lobe = st.rng.next_f32();
-            let u = st.rng.next_2d();
-            let Some(bs) = brdf.sample(u_lobe, u) else { return };
-            let wi = sf.frame.to_world(bs.wi);
-            if wi.dot(ng) <= 0.0 {
-                return;
-            }
-            beta *= bs.weight;
-            prev_pdf = bs.pdf;
-            o = origin;
-            d = wi;
-            depth += 1;
-            if depth >= cfg.rr_depth {
-                let q = beta.max_element().min(0.95);
-                let u = st.rng.next_f32();
-                if u.is_nan() || u >= q {
-                    return;
-                }
-                beta /= q;
             }
         }
+    }
+
+    /// Traces the paths of a packet in lockstep, a segment at a time, so that the hits that
+    /// land on the same part are shaded in one batch (one SIMD lane each in a compiled graph's
+    /// kernel). `paths[k]` is `None` past the packet's end. Each path draws its own random
+    /// numbers and adds to its own pixel, so a path's result is the one it has alone.
+    #[inline(always)]
+    fn trace_packet(&self, paths: &mut [Option<(PathVertex, PathState)>; PACKET], cfg: &PathConfig) {
+        let sel = self.selection(cfg.per_light);
+        let mut stops: [Option<SurfaceStop>; PACKET] = [None; PACKET];
+        let mut alive: [bool; PACKET] = std::array::from_fn(|k| paths[k].is_some());
+        loop {
+            for ((path, stop), alive) in paths.iter_mut().zip(&mut stops).zip(&mut alive) {
+                if let (Some((v, st)), true) = (path, *alive) {
+                    *stop = self.advance_to_surface(v, sel, cfg, st);
+                    *alive = stop.is_some();
+                }
+            }
+            if !alive.contains(&true) {
+                return;
+            }
+            let samples = self.shade_stops(&stops, &alive);
+            for (k, (path, stop)) in paths.iter_mut().zip(&stops).enumerate() {
+                if let (Some((v, st)), Some(stop), true) = (path, stop, alive[k]) {
+                    alive[k] = self.shade_and_continue(v, stop, samples[k], cfg, st);
+                }
+            }
+        }
+    }
+
+    /// The material's sample at every live stop of a packet, the stops on one part evaluated
+    /// together.
+    #[inline(always)]
+    fn shade_stops(&self, stops: &[Option<SurfaceStop>; PACKET], alive: &[bool; PACKET]) -> [SurfaceSample; PACKET] {
+        let mut samples = [SurfaceSample::default(); PACKET];
+        let mut done = alive.map(|a| !a);
+        for k in 0..PACKET {
+            let part = match &stops[k] {
+                Some(stop) if !done[k] => stop.hit.part,
+                _ => continue,
+            };
+            let (mut members, mut uvs, mut n) = ([0usize; PACKET], [[0.0f32; 2]; PACKET], 0);
+            for j in k..PACKET {
+                match &stops[j] {
+                    Some(stop) if !done[j] && stop.hit.part == part => {
+                        (members[n], uvs[n]) = (j, stop.hit.uv);
+                        done[j] = true;
+                        n += 1;
+                    }
+                    _ => {}
+                }
+            }
+            let mut out = [SurfaceSample::default(); PACKET];
+            self.materials[part as usize].eval_batch(&uvs[..n], &mut out[..n]);
+            for (&j, s) in members[..n].iter().zip(out) {
+                samples[j] = s;
+            }
+        }
+        samples
     }
 
     /// Path-trace an image from `camera` (its resolution is overridden by the options' size).
@@ -489,19 +446,26 @@ impl Renderer {
     ) -> u64 {
         let (w, ns) = (opts.width, self.n_slots());
         let mut row_rays = 0u64;
-        for x in 0..w {
-            let pixel = (y * w + x) as u64;
-            let acc = &mut row[x * ns..(x + 1) * ns];
+        // A packet is PACKET neighbouring pixels at the same sample index: their camera rays
+        // mostly hit the same part, and each pixel's samples still add up in sample order.
+        for x0 in (0..w).step_by(PACKET) {
+            let pixels = &mut row[x0 * ns..(x0 + PACKET).min(w) * ns];
             for s in samples.clone() {
-                let mut st = PathState { rng: Rng::new(opts.seed, pixel, s as u64), rays: 0, out: acc };
-                let j = st.rng.next_2d();
-                let d = cam.direction(x as f32 + j[0], y as f32 + j[1]);
-                self.li_inline(cam.position, d, cfg, &mut st);
-                row_rays += st.rays;
+                let mut accs = pixels.chunks_mut(ns);
+                let mut paths: [Option<(PathVertex, PathState)>; PACKET] = std::array::from_fn(|k| {
+                    let out = accs.next()?;
+                    let (x, pixel) = (x0 + k, (y * w + x0 + k) as u64);
+                    let mut rng = Rng::new(opts.seed, pixel, s as u64);
+                    let j = rng.next_2d();
+                    let d = cam.direction(x as f32 + j[0], y as f32 + j[1]);
+                    Some((PathVertex::start(cam.position, d), PathState { rng, rays: 0, out }))
+                });
+                self.trace_packet(&mut paths, cfg);
+                row_rays += paths.iter().flatten().map(|(_, st)| st.rays).sum::<u64>();
             }
             if last {
                 let inv = 1.0 / opts.spp as f32;
-                acc.iter_mut().for_each(|a| *a *= inv);
+                pixels.iter_mut().for_each(|a| *a *= inv);
             }
         }
         row_rays

@@ -347,7 +347,30 @@ impl MaterialBinding {
     /// (slopes follow the pattern's rotation, not its scale), the way the fit's shading layer
     /// does.
     pub fn eval(&self, uv: [f32; 2]) -> SurfaceSample {
-        let mut s = self.material.eval(self.transform_uv(uv));
+        self.finish(self.material.eval(self.transform_uv(uv)))
+    }
+
+    /// [`MaterialBinding::eval`] at several mesh uvs at once (`out.len() == uvs.len()`), through
+    /// [`SurfaceMaterial::eval_batch`]: the hits of a path-tracing packet on this part. The same
+    /// values as one `eval` per point.
+    pub fn eval_batch(&self, uvs: &[[f32; 2]], out: &mut [SurfaceSample]) {
+        const CHUNK: usize = 16;
+        for (uvs, out) in uvs.chunks(CHUNK).zip(out.chunks_mut(CHUNK)) {
+            let mut at = [[0.0f32; 2]; CHUNK];
+            for (a, &uv) in at.iter_mut().zip(uvs) {
+                *a = self.transform_uv(uv);
+            }
+            self.material.eval_batch(&at[..uvs.len()], out);
+            for s in out.iter_mut() {
+                *s = self.finish(*s);
+            }
+        }
+    }
+
+    /// A material's sample at transformed uv to the part's: normal back into mesh-uv space,
+    /// scales applied, values clamped.
+    #[inline]
+    fn finish(&self, mut s: SurfaceSample) -> SurfaceSample {
         let (cos, sin) = self.uv_rotation();
         if sin != 0.0 || cos != 1.0 {
             let [nx, ny, nz] = s.normal;

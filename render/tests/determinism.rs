@@ -118,3 +118,66 @@ fn invalid_radiances_are_refused_and_change_nothing() {
     }
     assert_eq!(r.radiances().lights, good.lights);
 }
+
+/// A pattern that differs per part and varies across each part's uv in albedo, roughness and
+/// normal, so a sample handed to the wrong path of a packet shows.
+struct Waves {
+    freq: f32,
+}
+
+impl psc_render::SurfaceMaterial for Waves {
+    fn eval(&self, uv: [f32; 2]) -> psc_render::SurfaceSample {
+        let (a, b) = ((uv[0] * self.freq).sin(), (uv[1] * self.freq * 0.7).cos());
+        psc_render::SurfaceSample {
+            albedo: [0.45 + 0.4 * a, 0.5 + 0.3 * b, 0.4 + 0.2 * a * b],
+            roughness: 0.5 + 0.45 * b,
+            normal: [0.3 * a, -0.2 * b, 1.0],
+        }
+    }
+
+    /// Evaluated back to front, as a batch implementation may: only the pairing of points and
+    /// samples is promised.
+    fn eval_batch(&self, uvs: &[[f32; 2]], out: &mut [psc_render::SurfaceSample]) {
+        for k in (0..uvs.len()).rev() {
+            out[k] = self.eval(uvs[k]);
+        }
+    }
+}
+
+/// The render loop traces neighbouring pixels' paths in lockstep and shades the hits that share
+/// a part in one batch; every pixel must still be what its paths give one at a time through
+/// [`Renderer::li`], bit for bit (a row that is not a whole number of packets included).
+#[test]
+fn packets_of_paths_render_what_single_paths_do() {
+    let (scene, _) = setup();
+    let materials = (0..scene.mesh.part_names.len())
+        .map(|k| psc_render::MaterialBinding::new(std::sync::Arc::new(Waves { freq: 5.0 + 3.0 * k as f32 })))
+        .collect();
+    let mut radiances = LightRadiances::unit(&scene);
+    radiances.lights[0] = [5.0, 4.0, 3.0];
+    let r = Renderer::new(&scene, materials, &radiances).unwrap();
+    let cam = &scene.views[0].camera;
+    let o = opts(11, 2);
+    let got = r.render(cam, &o).unwrap();
+    let cfg = o.path_config();
+    let mut want = Vec::new();
+    for y in 0..H {
+        for x in 0..W {
+            let mut acc = vec![glam::Vec3::ZERO; r.n_slots()];
+            for s in 0..o.spp {
+                let mut rng = psc_render::rng::Rng::new(o.seed, (y * W + x) as u64, s as u64);
+                let j = rng.next_2d();
+                let d = cam.direction(x as f32 + j[0], y as f32 + j[1]);
+                let mut st = psc_render::integrator::PathState { rng, rays: 0, out: &mut acc };
+                r.li(cam.position, d, &cfg, &mut st);
+            }
+            let inv = 1.0 / o.spp as f32;
+            let px = acc.iter().map(|a| *a * inv).zip(r.slot_radiance()).fold(glam::Vec3::ZERO, |t, (v, l)| t + v * *l);
+            want.push(px.to_array());
+        }
+    }
+    const { assert!(!W.is_multiple_of(16), "a row should end in a partial packet") };
+    assert!(got.image.iter().any(|p| p[0] > 0.0), "the test room must be lit");
+    let differing = got.image.iter().zip(&want).filter(|(a, b)| a != b).count();
+    assert_eq!(differing, 0, "{differing} of {} pixels differ from single paths", W * H);
+}

@@ -3,6 +3,7 @@
 use std::sync::Arc;
 
 use psc_compiler::Channel;
+use psc_jit::CompiledKernel;
 use psc_render::material::{SurfaceMaterial, SurfaceSample};
 
 use crate::library::Material;
@@ -49,16 +50,27 @@ impl SurfaceMaterial for ProceduralMaterial {
         }
     }
 
+    /// The hits of a path-tracing packet that share this material: up to
+    /// [`CompiledKernel::MAX_POINTS`] at a time through the stack-only packet entry, one SIMD
+    /// lane each, so the values are those of [`SurfaceMaterial::eval`] bit for bit.
     fn eval_batch(&self, uvs: &[[f32; 2]], out: &mut [SurfaceSample]) {
-        let u: Vec<f32> = uvs.iter().map(|p| p[0]).collect();
-        let v: Vec<f32> = uvs.iter().map(|p| p[1]).collect();
-        match self.material.kernel.eval(&self.params, &u, &v) {
-            Ok(channels) => {
-                for (k, o) in out.iter_mut().enumerate() {
-                    *o = sample_from(|ch| channels[ch.index()][k]);
-                }
+        const N: usize = CompiledKernel::MAX_POINTS;
+        let kernel = self.material.kernel.forward_jit();
+        for (uvs, out) in uvs.chunks(N).zip(out.chunks_mut(N)) {
+            let n = uvs.len();
+            let (mut u, mut v) = ([0.0f32; N], [0.0f32; N]);
+            for (k, p) in uvs.iter().enumerate() {
+                (u[k], v[k]) = (p[0], p[1]);
             }
-            Err(_) => out.fill(SHAPE_ERROR_SAMPLE),
+            let mut c = [0.0f32; N * Channel::COUNT];
+            match kernel.run_points(&self.params, &u[..n], &v[..n], &mut c[..n * Channel::COUNT]) {
+                Ok(()) => {
+                    for (k, o) in out.iter_mut().enumerate() {
+                        *o = sample_from(|ch| c[k * Channel::COUNT + ch.index()]);
+                    }
+                }
+                Err(_) => out.fill(SHAPE_ERROR_SAMPLE),
+            }
         }
     }
 }

@@ -79,3 +79,27 @@ fn jit_adjoint_matches_the_interpreter_adjoint() {
         assert!(grads.d_params.iter().all(|g| g.is_finite()), "{}: non-finite parameter gradient", m.name());
     }
 }
+
+/// The renderer shades the hits of a packet that share a part in one batch: for every library
+/// graph, a batch (longer than the packet entry's 16 points, so it is cut in chunks) gives each
+/// point exactly what evaluating it alone gives.
+#[test]
+fn a_batch_of_hits_shades_as_the_hits_one_at_a_time() {
+    use psc_render::SurfaceMaterial;
+    use psc_runtime::material::ProceduralMaterial;
+    let mut rng = Rng(0x5EED_BA7C);
+    for m in &library().materials {
+        let params = ParamSpace::new(&m.graph.info).random(&mut rng);
+        let material = ProceduralMaterial::new(std::sync::Arc::clone(m), params).unwrap();
+        let uvs: Vec<[f32; 2]> = (0..37).map(|_| [rng.next_f32() * 3.0 - 1.0, rng.next_f32() * 3.0 - 1.0]).collect();
+        let mut batch = vec![psc_render::SurfaceSample::default(); uvs.len()];
+        material.eval_batch(&uvs, &mut batch);
+        for (k, (uv, got)) in uvs.iter().zip(&batch).enumerate() {
+            let alone = material.eval(*uv);
+            let bits = |s: &psc_render::SurfaceSample| {
+                s.albedo.iter().chain(&s.normal).chain([&s.roughness]).map(|x| x.to_bits()).collect::<Vec<_>>()
+            };
+            assert_eq!(bits(got), bits(&alone), "{}: point {k} at {uv:?}", m.name());
+        }
+    }
+}
