@@ -277,30 +277,32 @@ impl Renderer {
         let mut stops: [Option<SurfaceStop>; PACKET] = [None; PACKET];
         let mut alive: [bool; PACKET] = std::array::from_fn(|k| paths[k].is_some());
         loop {
+            // A stop is `Some` exactly for the paths still alive on a surface.
             for ((path, stop), alive) in paths.iter_mut().zip(&mut stops).zip(&mut alive) {
-                if let (Some((v, st)), true) = (path, *alive) {
-                    *stop = self.advance_to_surface(v, sel, cfg, st);
-                    *alive = stop.is_some();
-                }
+                *stop = match (path, *alive) {
+                    (Some((v, st)), true) => self.advance_to_surface(v, sel, cfg, st),
+                    _ => None,
+                };
+                *alive = stop.is_some();
             }
             if !alive.contains(&true) {
                 return;
             }
-            let samples = self.shade_stops(&stops, &alive);
-            for (k, (path, stop)) in paths.iter_mut().zip(&stops).enumerate() {
-                if let (Some((v, st)), Some(stop), true) = (path, stop, alive[k]) {
-                    alive[k] = self.shade_and_continue(v, stop, samples[k], cfg, st);
+            let samples = self.shade_stops(&stops);
+            for (((path, stop), alive), s) in paths.iter_mut().zip(&stops).zip(&mut alive).zip(samples) {
+                if let (Some((v, st)), Some(stop)) = (path, stop) {
+                    *alive = self.shade_and_continue(v, stop, s, cfg, st);
                 }
             }
         }
     }
 
-    /// The material's sample at every live stop of a packet, the stops on one part evaluated
+    /// The material's sample at every stop of a packet, the stops on one part evaluated
     /// together.
     #[inline(always)]
-    fn shade_stops(&self, stops: &[Option<SurfaceStop>; PACKET], alive: &[bool; PACKET]) -> [SurfaceSample; PACKET] {
+    fn shade_stops(&self, stops: &[Option<SurfaceStop>; PACKET]) -> [SurfaceSample; PACKET] {
         let mut samples = [SurfaceSample::default(); PACKET];
-        let mut done = alive.map(|a| !a);
+        let mut done = [false; PACKET];
         for k in 0..PACKET {
             let part = match &stops[k] {
                 Some(stop) if !done[k] => stop.hit.part,
