@@ -400,8 +400,8 @@ fn run(
 /// Every part of the scene fitted, in part order. Parts run in parallel as well as within: a
 /// small part's batches leave cores idle. A part's fit reads nothing another part writes, so
 /// the results are the same in any order and for any thread count. Each free thread takes the
-/// next part in order of size, largest first, so that the largest part does not start last
-/// and run alone. Every part runs; the first error in part order is returned.
+/// next part in order of [`fit_work`], most first, so that the longest fit does not start
+/// last and run alone. Every part runs; the first error in part order is returned.
 fn fit_every_part(
     inputs: &PartInputs,
     aligned: &[Vec<AlignedPart>],
@@ -412,7 +412,7 @@ fn fit_every_part(
 ) -> Result<Vec<PartResult>, FitError> {
     let n_parts = inputs.scene.mesh.part_names.len();
     let mut by_size: Vec<usize> = (0..n_parts).collect();
-    by_size.sort_by_key(|&part| std::cmp::Reverse(usable_pixels(aligned, part as u32)));
+    by_size.sort_by_key(|&part| std::cmp::Reverse(fit_work(aligned, part as u32, options.fit_pixels)));
     let mut fitted: Vec<(usize, Result<PartResult, FitError>)> = by_size
         .into_iter()
         .par_bridge()
@@ -430,9 +430,26 @@ fn fit_every_part(
     fitted.into_iter().map(|(_, r)| r).collect()
 }
 
-/// A part's usable photo pixels over every view: how long its fit will take, roughly.
-fn usable_pixels(aligned: &[Vec<AlignedPart>], part: u32) -> usize {
-    aligned.iter().flatten().filter(|a| a.part == part).map(|a| a.usable.len()).sum()
+/// How many pixels a part's fit will render, roughly: the most over its views of what the fit
+/// window would hold there. The window takes at most `fit_pixels` usable pixels, with the
+/// clipped pixels among them in proportion (the losses count clipped pixels too). Counting
+/// usable pixels alone put dev_2's rug (3262 usable, 5841 clipped, all 9063 fitted: the
+/// longest fit of the room) fourth, so it ran alone at the end.
+fn fit_work(aligned: &[Vec<AlignedPart>], part: u32, fit_pixels: usize) -> usize {
+    aligned
+        .iter()
+        .flatten()
+        .filter(|a| a.part == part)
+        .map(|a| {
+            let (usable, clipped) = (a.usable.len(), a.clipped.len());
+            if usable <= fit_pixels {
+                usable + clipped
+            } else {
+                fit_pixels + clipped * fit_pixels / usable
+            }
+        })
+        .max()
+        .unwrap_or(0)
 }
 
 /// One global light solve under the renderer's current materials, applied to `result`: the
@@ -515,5 +532,38 @@ fn spread_note(names: &[String], solve: &crate::light_solve::LightSolve) -> Stri
             spread_percent(sd)
         ),
         None => format!("; the photos do not determine the ratio {pair} at all: the solve's damping sets it"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::align::{Dropped, Warp};
+
+    fn seen(part: u32, view: usize, usable: usize, clipped: usize) -> AlignedPart {
+        AlignedPart {
+            part,
+            view,
+            warp: Warp::IDENTITY,
+            iou_initial: 1.0,
+            iou: 1.0,
+            photo_pixels: usable + clipped,
+            model_pixels: usable + clipped,
+            usable: (0..usable as u32).collect(),
+            clipped: (0..clipped as u32).collect(),
+            dropped: Dropped::default(),
+        }
+    }
+
+    #[test]
+    fn a_mostly_clipped_part_within_the_budget_outranks_a_large_wall() {
+        // dev_2's rug against its wall, in one view; the wall also in a second view.
+        let aligned = vec![vec![seen(0, 0, 34040, 0), seen(1, 0, 3262, 5841)], vec![seen(0, 1, 20000, 800)]];
+        let budget = 4096;
+        let (wall, rug) = (fit_work(&aligned, 0, budget), fit_work(&aligned, 1, budget));
+        assert_eq!(rug, 9103, "within the budget every usable and clipped pixel is fitted");
+        assert_eq!(wall, 4096 + 800 * 4096 / 20000, "the view whose window holds the most");
+        assert!(rug > wall);
+        assert_eq!(fit_work(&aligned, 2, budget), 0, "a part no view shows");
     }
 }
