@@ -411,9 +411,9 @@ fn fit_every_part(
     progress: &dyn Progress,
 ) -> Result<Vec<PartResult>, FitError> {
     let n_parts = inputs.scene.mesh.part_names.len();
-    let mut by_size: Vec<usize> = (0..n_parts).collect();
-    by_size.sort_by_key(|&part| std::cmp::Reverse(fit_work(aligned, part as u32, options.fit_pixels)));
-    let mut fitted: Vec<(usize, Result<PartResult, FitError>)> = by_size
+    let mut by_work: Vec<usize> = (0..n_parts).collect();
+    by_work.sort_by_key(|&part| std::cmp::Reverse(fit_work(aligned, part as u32, options.fit_pixels)));
+    let mut fitted: Vec<(usize, Result<PartResult, FitError>)> = by_work
         .into_iter()
         .par_bridge()
         .map(|part| {
