@@ -70,6 +70,15 @@ pub struct Args {
     /// pixels); at least the 500 a part needs to be fitted at all.
     #[arg(long, default_value_t = fit_defaults().fit_pixels, value_parser = parse_fit_pixels)]
     fit_pixels: usize,
+    /// Most photo pixels of a part that graph selection and the UV search render each
+    /// candidate on (larger parts: the window with the most usable pixels).
+    #[arg(long, default_value_t = fit_defaults().search_pixels, value_parser = parse_fit_pixels)]
+    search_pixels: usize,
+    /// Most supersamples per pixel axis when selection and the UV search render a candidate
+    /// (the fit itself takes up to 4): more cost time, and keep a fine pattern on a far part from
+    /// aliasing into noise.
+    #[arg(long, default_value_t = fit_defaults().fit.search_sampling.max_per_axis, value_parser = clap::value_parser!(u32).range(1..=8))]
+    search_samples: u32,
     /// Photos with more pixels are fitted at a working resolution within this many: averaged
     /// over blocks of the smallest whole number of pixels that brings them within it (0: always
     /// the full resolution, which for a 12-megapixel photo takes hours; else at least 16384).
@@ -235,6 +244,8 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
     options.fit.max_iterations = args.iterations;
     options.refit_rounds = args.refit_rounds;
     options.fit_pixels = args.fit_pixels.max(1);
+    options.search_pixels = args.search_pixels;
+    options.fit.search_sampling.max_per_axis = args.search_samples;
     options.max_photo_pixels = args.max_photo_pixels;
     let drawer = Drawer::new(args.quiet);
     let progress = FitProgress { drawer: &drawer, open: AtomicBool::new(false) };

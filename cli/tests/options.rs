@@ -153,6 +153,13 @@ fn requests_past_the_limits_are_refused_at_once() {
             vec!["--exemplars", "expected 1 to 1000 exemplars"],
         ),
         (v(&["fit", room, "--fit-pixels", "1", "--out", &format!("{d}/f")]), 2, vec!["--fit-pixels", "at least 500"]),
+        (
+            v(&["fit", room, "--search-pixels", "499", "--out", &format!("{d}/f")]),
+            2,
+            vec!["--search-pixels", "at least 500"],
+        ),
+        (v(&["fit", room, "--search-samples", "0", "--out", &format!("{d}/f")]), 2, vec!["--search-samples", "'0'"]),
+        (v(&["fit", room, "--search-samples", "9", "--out", &format!("{d}/f")]), 2, vec!["--search-samples", "'9'"]),
         (v(&["eval", room, room, "--threads", "0"]), 2, vec!["--threads", "at least 1 thread"]),
         (v(&["eval", room, room, "--spp", "0"]), 2, vec!["--spp", "at least 1 sample"]),
         (v(&["eval", room, room, "--flat-spp", "0"]), 2, vec!["--flat-spp", "at least 1 sample"]),
