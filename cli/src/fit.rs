@@ -13,6 +13,7 @@ use psc_base::progress::Progress as _;
 use psc_export::ExportOptions;
 use psc_fit::output::{self, OutputOptions};
 use psc_fit::pipeline::{continue_fit, fit_scene, Continue, FitOptions, Progress};
+use psc_fit::targets::WindowShape;
 use psc_render::scene::{LightRadiances, Scene};
 use psc_runtime::assign::Assignment;
 use psc_runtime::library::{default_library_root, Library};
@@ -70,6 +71,12 @@ pub struct Args {
     /// pixels); at least the 500 a part needs to be fitted at all.
     #[arg(long, default_value_t = fit_defaults().fit_pixels, value_parser = parse_fit_pixels)]
     fit_pixels: usize,
+    /// The shape of the window a part with more usable pixels than `--fit-pixels` is fitted on:
+    /// the aspect of the part's bounding box, or as square as the part allows at the same area
+    /// (so that a wide floor is fitted on a square of it rather than a thin strip; it measured
+    /// better graph families, worse texture contrast: see fit/src/targets.rs).
+    #[arg(long, value_enum, default_value_t = fit_defaults().fit_window_shape.into())]
+    fit_window: FitWindow,
     /// Most photo pixels of a part that graph selection and the UV search render each
     /// candidate on (larger parts: the window with the most usable pixels).
     #[arg(long, default_value_t = fit_defaults().search_pixels, value_parser = parse_fit_pixels)]
@@ -97,6 +104,30 @@ pub struct Args {
     /// No progress output.
     #[arg(long)]
     quiet: bool,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, PartialEq, Eq, Debug)]
+enum FitWindow {
+    Box,
+    Square,
+}
+
+impl From<WindowShape> for FitWindow {
+    fn from(shape: WindowShape) -> Self {
+        match shape {
+            WindowShape::BoundingBox => FitWindow::Box,
+            WindowShape::Square => FitWindow::Square,
+        }
+    }
+}
+
+impl From<FitWindow> for WindowShape {
+    fn from(window: FitWindow) -> Self {
+        match window {
+            FitWindow::Box => WindowShape::BoundingBox,
+            FitWindow::Square => WindowShape::Square,
+        }
+    }
 }
 
 /// The library's defaults, which the options' defaults show rather than repeat (the output
@@ -245,6 +276,7 @@ pub fn run(args: Args) -> Result<ExitCode, Error> {
     options.refit_rounds = args.refit_rounds;
     options.fit_pixels = args.fit_pixels.max(1);
     options.search_pixels = args.search_pixels;
+    options.fit_window_shape = args.fit_window.into();
     options.fit.search_sampling.max_per_axis = args.search_samples;
     options.max_photo_pixels = args.max_photo_pixels;
     let drawer = Drawer::new(args.quiet);

@@ -159,6 +159,11 @@ fn requests_past_the_limits_are_refused_at_once() {
             vec!["--search-pixels", "at least 500"],
         ),
         (v(&["fit", room, "--search-samples", "0", "--out", &format!("{d}/f")]), 2, vec!["--search-samples", "'0'"]),
+        (
+            v(&["fit", room, "--fit-window", "round", "--out", &format!("{d}/f")]),
+            2,
+            vec!["--fit-window", "'round'", "square"],
+        ),
         (v(&["fit", room, "--search-samples", "9", "--out", &format!("{d}/f")]), 2, vec!["--search-samples", "'9'"]),
         (v(&["eval", room, room, "--threads", "0"]), 2, vec!["--threads", "at least 1 thread"]),
         (v(&["eval", room, room, "--spp", "0"]), 2, vec!["--spp", "at least 1 sample"]),

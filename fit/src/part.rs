@@ -112,7 +112,7 @@ pub(crate) fn fit_one_part(
             renderer.geometry(),
             &obs.camera,
             &shading[v],
-            options.search_pixels,
+            options.search_window(),
             exposure[v],
             render_noise.get(v),
         ) else {
@@ -156,7 +156,7 @@ pub(crate) fn fit_one_part(
         renderer.geometry(),
         &obs.camera,
         &shading[chosen.view],
-        options.fit_pixels,
+        options.fit_window(),
         exposure[chosen.view],
         render_noise.get(chosen.view),
     )

@@ -23,6 +23,7 @@ use crate::part_fit::FitSettings;
 use crate::refit::{self, RoundInputs, RoundLighting};
 use crate::render_noise;
 use crate::select::SelectSettings;
+use crate::targets::{Window, WindowShape};
 
 pub use crate::result::{
     binding, FitResult, LightRound, PartResult, PartStatus, PartTimings, PixelCounts, PreviousFit,
@@ -40,6 +41,9 @@ pub struct FitOptions {
     /// Fit pixels of a part's fit view and of its search view (selection, UV search).
     pub fit_pixels: usize,
     pub search_pixels: usize,
+    /// The shape of a part's fit window when the part holds more than `fit_pixels` (the search
+    /// window keeps its bounding box's aspect).
+    pub fit_window_shape: WindowShape,
     /// Parts with fewer usable pixels get a homogeneous material.
     pub min_pixels: usize,
     pub loss: LossWeights,
@@ -52,6 +56,19 @@ pub struct FitOptions {
     /// Photos with more pixels are fitted at a working raster within this many (0: no limit;
     /// see [`crate::working`]).
     pub max_photo_pixels: usize,
+}
+
+impl FitOptions {
+    /// The window selection and the UV search render their candidates on: the aspect of the
+    /// part's bounding box (a square one was measured; see [`crate::targets`]).
+    pub fn search_window(&self) -> Window {
+        Window { max_pixels: self.search_pixels, shape: WindowShape::BoundingBox }
+    }
+
+    /// The window a part's parameters are fitted on.
+    pub fn fit_window(&self) -> Window {
+        Window { max_pixels: self.fit_pixels, shape: self.fit_window_shape }
+    }
 }
 
 /// About 420×315: the dev scenes' 320×240 photos are fitted as they are; a 640×480 photo at
@@ -68,6 +85,7 @@ impl Default for FitOptions {
             grid: GridSettings::default(),
             fit_pixels: 4096,
             search_pixels: 1024,
+            fit_window_shape: WindowShape::BoundingBox,
             min_pixels: 500,
             loss: LossWeights::default(),
             features: FeatureConfig::default(),

@@ -28,7 +28,7 @@ use crate::part::{flat_colour, flat_state};
 use crate::part_fit::{fit_part, FitSettings, Problem};
 use crate::pipeline::FitOptions;
 use crate::result::{PartResult, PartStatus};
-use crate::targets::part_view;
+use crate::targets::{part_view, Window};
 
 /// Solves every emitter's radiance jointly with a factor on every part's albedo and an exposure
 /// per view, under the renderer's current materials (see
@@ -94,7 +94,7 @@ pub fn refit_appearance(inputs: &RoundInputs, light: &RoundLighting, part: &mut 
             geometry,
             &obs.camera,
             &light.shading[v],
-            options.search_pixels,
+            options.search_window(),
             exposure,
             inputs.render_noise.get(v),
         ) {
@@ -109,7 +109,7 @@ pub fn refit_appearance(inputs: &RoundInputs, light: &RoundLighting, part: &mut 
         geometry,
         &obs.camera,
         &light.shading[v],
-        options.fit_pixels,
+        options.fit_window(),
         light.exposure(v),
         inputs.render_noise.get(v),
     ) else {
@@ -149,7 +149,7 @@ pub fn match_whole_part(inputs: &RoundInputs, light: &RoundLighting, part: &mut 
         light.renderer.geometry(),
         &obs.camera,
         &light.shading[v],
-        usize::MAX,
+        Window::WHOLE,
         exposure,
         inputs.render_noise.get(v),
     ) else {

@@ -9,7 +9,7 @@ use psc_fit::align::align_view;
 use psc_fit::layer::{MaterialState, Sampling, Workspace};
 use psc_fit::lighting::{self, GridSettings, ShadingGrid};
 use psc_fit::observe::ViewObservation;
-use psc_fit::targets::part_view;
+use psc_fit::targets::{part_view, Window};
 use psc_fit::uvmap::UvTransform;
 use psc_render::scene::{LightRadiances, Scene};
 use psc_render::{RenderOptions, Renderer};
@@ -79,7 +79,8 @@ fn check_scene(name: &str, library: &Library, graph: &str, uv: UvTransform) -> V
     let mut out = Vec::new();
     let mut ws = Workspace::default();
     for aligned in align_view(obs, 0, n_parts) {
-        let Some(pv) = part_view(obs, &aligned, renderer.geometry(), &obs.camera, &shading, usize::MAX, [1.0; 3], None)
+        let Some(pv) =
+            part_view(obs, &aligned, renderer.geometry(), &obs.camera, &shading, Window::WHOLE, [1.0; 3], None)
         else {
             continue;
         };

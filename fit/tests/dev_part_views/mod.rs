@@ -8,6 +8,7 @@ use psc_fit::align::align_view;
 use psc_fit::layer::PartView;
 use psc_fit::lighting::{self, GridSettings, ShadingGrid};
 use psc_fit::observe::ViewObservation;
+use psc_fit::pipeline::FitOptions;
 use psc_fit::render_noise;
 use psc_fit::targets::part_view;
 use psc_render::scene::{LightRadiances, Scene};
@@ -53,12 +54,14 @@ pub fn first_view_parts(scene: &str, test: &str, min_usable: usize) -> Option<Ve
     let grids = lighting::view_grids(&renderer, &views, GridSettings::default(), 0).unwrap();
     let shading = ShadingGrid::new(&grids[0], &radiance, views[0].camera.position);
     let obs = &views[0];
+    let fit_window = FitOptions::default().fit_window();
     let parts = aligned[0]
         .iter()
         .filter(|a| a.usable.len() >= min_usable)
         .map(|a| {
             let view =
-                part_view(obs, a, renderer.geometry(), &obs.camera, &shading, 4096, [1.0; 3], Some(&noise[0])).unwrap();
+                part_view(obs, a, renderer.geometry(), &obs.camera, &shading, fit_window, [1.0; 3], Some(&noise[0]))
+                    .unwrap();
             let name = loaded.mesh.part_names[a.part as usize].clone();
             DevPart { kind: kind_of(&name), name, view }
         })
