@@ -283,7 +283,10 @@ fn crop_noise(target: &[[f32; 3]], unclipped: &[f32], weight: &[f32], w: usize, 
 /// 0.22 / 0.30) and three of the four two-light rooms' ratios moved away from the truth (g1's
 /// and dev_1's on pairs their photos do not determine). One seed: single cells move by up to
 /// 0.2 between seeds. dev_2 alone at seed 1: square 0.47 / 0.24 / 0.55 against 0.49 / 0.29 /
-/// 0.55, its lights 3.9% off against 8.7% (7.3% against 13.2% at seed 0), 3 of 3 family both. The search window stays at the bounding box's aspect; the fit window's
+/// 0.55, its lights 3.9% off against 8.7% (7.3% against 13.2% at seed 0), 3 of 3 family both;
+/// g2 at seed 1: square 0.32 / 0.33 / 0.35 against 0.27 / 0.26 / 0.29, lights 14.8% off against
+/// 2.4%, family 1 of 2 (its plank floor an acoustic ceiling) against 2 of 2: the seed-0 gain
+/// there was the seed's. The search window stays at the bounding box's aspect; the fit window's
 /// shape is an option, its default the bounding box's aspect.
 fn window_pixels(usable: &[u32], w: usize, window: Window) -> Vec<u32> {
     let max_pixels = window.max_pixels;
