@@ -105,6 +105,23 @@
 //! as well (`part_fit::fit_contest`, seed 0): the family 4 of 7 against 2 on the hold-out rooms,
 //! 4 of 6 against 3 on the dev scenes, dev_1's lights 26.4% off. Left at ten.
 //!
+//! Stratified draws were measured in full fits and left out: each graph's ten exemplars on a
+//! Latin hypercube (every parameter's range, each colour's brightness and shifts, the rotation
+//! and the scales' jitter cut into ten strata, one exemplar in each), so that whether a graph
+//! has an exemplar near the photo depends less on where ten independent draws fall. At seed 1
+//! on the four dev scenes and the four hold-out rooms, against the independent draws (the
+//! head's fits at that seed): the family 7 of 13 against 9 (dev_2's plaster rug a marble,
+//! dev_4's plaster walls a brushed metal, g4's plank floor a smooth leather; dev_1's stripe rug
+//! a printed stripes, won), true-geometry texture contrast over the pixel median's summed over
+//! each set's 12 cells 5.51 against 5.06 (dev_3's novel views 0.81 against 0.64) and 4.36
+//! against 4.43, RMSE within 0.05 in every cell; the lights between two lights dev_1 40.1% off
+//! (12.4%; walls a canvas), dev_2 4.1% (8.7%), g2 7.9% (2.4%), g1, g4 and dev_4 within a point.
+//! dev_1 at seed 2: 74.2% off (15.2%; its walls a bouclé). The crop test of
+//! `fit/tests/selection.rs` failed with them: oak planks at their defaults lost their contest
+//! to subway tiles at seed 1 (0.0204 against 0.0187 after the start). Even coverage of the
+//! parameters moved the choices as a change of seed does and did not steady them: what the
+//! seed decides is mostly each contender's start, not whether a graph has a near exemplar.
+//!
 //! The pattern term with the exemplar's contrast left free (every descriptor energy of the
 //! exemplar times the factor that minimises the feature loss, found by golden section at each
 //! orientation shift), so that the vote judges the pattern's shape across scales and orientations
