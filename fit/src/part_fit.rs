@@ -272,6 +272,7 @@ pub struct Contest {
 /// start 0.0226 against 0.0190, after 30 steps 0.0394 against 0.0306), its rug got a calacatta
 /// marble instead of a plain weave; contrast 0.34 / 0.32 / 0.36 against 0.24 / 0.22 / 0.32, the
 /// lights 7.5% off against 2.1%. The rest of the battery was not run.
+///
 /// On the selection bench (`cargo bench -p psc-fit --bench selection_families`, the contest
 /// alone on the dev textures' 20 judged crops), 60 steps against 30 in the same session: the
 /// family on 11 crops against 13. Both of dev_3's plank textures at 64 pixels per tile went from
