@@ -273,13 +273,14 @@ pub struct Contest {
 /// marble instead of a plain weave; contrast 0.34 / 0.32 / 0.36 against 0.24 / 0.22 / 0.32, the
 /// lights 7.5% off against 2.1%. The rest of the battery was not run.
 ///
-/// On the selection bench (`cargo bench -p psc-fit --bench selection_families`, the contest
-/// alone on the dev textures' 20 judged crops), 60 steps against 30 in the same session: the
-/// family on 11 crops against 13. Both of dev_3's plank textures at 64 pixels per tile went from
-/// a pine paneling and an oak planks to a linoleum, which the longer run fits closer; the other
-/// 18 judged crops kept their family (dev_4's plaster a marble instead of a carrara marble, its
-/// stripes a striped wallpaper instead of a printed stripes). More steps before the choice let
-/// the loss decide more, and the loss is what prefers the wrong family.
+/// On the selection bench (`cargo bench -p psc-fit --bench selection_families`: the whole
+/// selection, votes then contest, away from any room, on the dev textures' 20 judged crops), 60
+/// steps against 30 in the same session: the family on 11 crops against 13. Both of dev_3's plank
+/// textures at 64 pixels per tile went from a pine paneling and an oak planks to a linoleum, which
+/// the longer run fits closer; the other 18 judged crops kept their family (dev_4's plaster a
+/// marble instead of a carrara marble, its stripes a striped wallpaper instead of a printed
+/// stripes). More steps before the choice let the loss decide more, and the loss is what prefers
+/// the wrong family.
 pub fn fit_contest(
     contenders: &[(Problem, Vec<MaterialState>)],
     settings: &FitSettings,
